@@ -1,0 +1,204 @@
+"""``autoscoop/Scoop-v0``: one continuous scoop of a particle pile by a skid-steer loader."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+from gymnasium.wrappers import TimeLimit
+
+from autoscoop import state as state_mod
+from autoscoop.config import ScoopConfig
+from autoscoop.reward import is_penetrating, scoop_reward
+from autoscoop.sim.scene import ScoopSim
+from autoscoop.state import CommandLimits, Measurements
+
+
+class ScoopEnv(gym.Env):
+    """A Komodo-style skid-steer loader scoops a pile of spherical particles (MuJoCo).
+
+    The robot starts with its bucket low and level, ``robot.start_gap_m`` in front of the pile's toe.
+    Within ``env.max_episode_s`` (8 s) it must drive in, fill the bucket, and lift it clear to the
+    terminal point, which ends the episode with success (paper: Shamshiri et al., IEEE Access 2021).
+
+    ## Action space
+    ``Box(-1, 1, (3,), float32)``. Each action moves its commanded target by ``action * range``,
+    clipped to the limits (the paper's code); the lift and tilt servos then move toward their
+    targets at the linear actuators' bounded speed and force. NaN or inf raises ``ValueError``;
+    values outside [-1, 1] are clipped.
+
+    | index | name  | target moved                  | range of the target      | unit | actuator (XML)        |
+    |-------|-------|-------------------------------|--------------------------|------|-----------------------|
+    | 0     | drive | forward speed                 | [-0.1, 0.1]              | m/s  | wheel_fl/fr/rl/rr     |
+    | 1     | lift  | lift angle (+ lowers the arm) | [-0.10, 0.32]            | rad  | lift (joint lift)     |
+    | 2     | tilt  | tilt angle (+ tips edge down) | [-0.50, 0.90]            | rad  | tilt (joint tilt)     |
+
+    ## Observation space
+    ``Box(-inf, inf, (12,), float32)``: the paper's state, built by :func:`autoscoop.state.build_state`.
+    Chassis frame: x forward from the chassis centre, z up from the ground.
+
+    | index | name    | meaning                                  | unit | source (XML name)                 |
+    |-------|---------|------------------------------------------|------|-----------------------------------|
+    | 0     | w       | mass in bucket / rated load (7 kg)       | -    | particles inside the bucket       |
+    | 1     | tip_x   | cutting edge x, chassis frame            | m    | kinematics of lift, tilt (site tip) |
+    | 2     | tip_z   | cutting edge z, chassis frame            | m    | kinematics (site tip)             |
+    | 3     | joint_x | tilt joint x, chassis frame              | m    | kinematics (site bucket_joint)    |
+    | 4     | joint_z | tilt joint z, chassis frame              | m    | kinematics (site bucket_joint)    |
+    | 5     | d_pile  | tip to the nearest particle surface outside the bucket | m | particle_* bodies  |
+    | 6     | v       | forward speed, wheel odometry            | m/s  | sensors wheel_*_vel               |
+    | 7     | lift    | lift angle                               | rad  | sensor lift_pos                   |
+    | 8     | tilt    | tilt angle                               | rad  | sensor tilt_pos                   |
+    | 9-11  | dv, dlift, dtilt | change since the previous step  | m/s, rad, rad |                          |
+
+    ## Reward (paper eq. 5-7)
+    ``P_t = 1 - tanh^2(d_end)`` while penetrating (tip within ``reward.delta_m`` of a particle centre),
+    else ``1 - tanh^2(d_t)``; plus ``reward.c_w * w_t`` on the step the tip comes within
+    ``reward.epsilon_m`` of the terminal point (``reward.terminal_dx_m`` from the toe,
+    ``reward.terminal_z_m`` high). ``info["reward_progress"] + info["reward_mass"] == reward``.
+
+    ## Episode end
+    Terminated on success or on a physics error (NaN state or a MuJoCo instability warning:
+    ``info["physics_error"]``). Truncated by Gymnasium's ``TimeLimit`` after ``env.max_episode_s``.
+
+    ## Info
+    ``reward_progress``, ``reward_mass``, ``particles_in_bucket``, ``mass_in_bucket_kg``,
+    ``fill_factor`` (mass / rated load), ``penetrating``, ``success``, ``cycle_time_s`` (on success),
+    ``spilled`` (particles that were in the bucket and are not now), ``physics_error``,
+    ``elapsed_s``, ``tip_to_pile_m``, ``tip_to_terminal_m``, ``lift_torque_nm``, ``tilt_torque_nm``.
+
+    Args:
+        config: the scene and task configuration; defaults to :class:`ScoopConfig`.
+        render_mode: ``"rgb_array"`` or ``None``.
+        overrides: dotted config keys, e.g. ``**{"pile.angle_deg": 25}``.
+    """
+
+    metadata = {"render_modes": ["rgb_array"], "render_fps": 4}
+
+    def __init__(self, config: ScoopConfig | None = None, render_mode: str | None = None,
+                 **overrides: Any) -> None:
+        config = config or ScoopConfig()
+        if overrides:
+            config = config.with_overrides(overrides)
+        if render_mode not in (None, *self.metadata["render_modes"]):
+            raise ValueError(f"render_mode {render_mode!r} is not supported; use one of {self.metadata['render_modes']}")
+        self.config = config
+        self.render_mode = render_mode
+        self.metadata = {**self.metadata, "render_fps": int(round(1.0 / config.env.control_period_s))}
+        self.sim = ScoopSim(config)
+        self.limits = CommandLimits(max_speed_mps=config.robot.max_speed_mps)
+        self.action_space = gym.spaces.Box(-1.0, 1.0, shape=(state_mod.ACTION_SIZE,), dtype=np.float32)
+        self.observation_space = gym.spaces.Box(-np.inf, np.inf, shape=(state_mod.STATE_SIZE,), dtype=np.float32)
+        self._terminal = np.array([config.reward.terminal_dx_m, 0.0, config.reward.terminal_z_m])
+        self._mass_estimator = None
+        self._renderer = None
+        self._targets = np.zeros(3)
+        self._previous: Measurements | None = None
+        self._ever_inside = np.zeros(config.pile.n_particles, dtype=bool)
+        self._last_obs = np.zeros(state_mod.STATE_SIZE, dtype=np.float32)
+        self._instabilities = 0
+
+    # ------------------------------------------------------------------ Gymnasium API
+    def reset(self, *, seed: int | None = None, options: dict | None = None) -> tuple[np.ndarray, dict]:
+        super().reset(seed=seed)
+        self.sim.reset(self.np_random)
+        cfg = self.config
+        self._targets = np.array([0.0, cfg.robot.start_lift_rad, cfg.robot.start_tilt_rad])
+        self._ever_inside[:] = False
+        self._previous = None
+        self._instabilities = self.sim.instability_count()
+        if self.config.env.mass_source == "torque":
+            from autoscoop.payload import TorqueMassSensor  # noqa: PLC0415 - optional until used
+            self._mass_estimator = TorqueMassSensor.for_env(cfg, self.np_random)
+        obs, info = self._observe()
+        info["physics_error"] = not np.all(np.isfinite(obs))
+        return obs, info
+
+    def step(self, action: np.ndarray) -> tuple[np.ndarray, float, bool, bool, dict]:
+        self._targets = state_mod.advance_targets(self._targets, action, self.limits)
+        cfg = self.config
+        period = cfg.env.control_period_s
+        lift_rate = np.clip((self._targets[1] - self.sim.lift_setpoint_rad) / period,
+                            -cfg.robot.lift_speed_radps, cfg.robot.lift_speed_radps)
+        tilt_rate = np.clip((self._targets[2] - self.sim.tilt_setpoint_rad) / period,
+                            -cfg.robot.tilt_speed_radps, cfg.robot.tilt_speed_radps)
+        self.sim.command(self._targets[0], lift_rate, tilt_rate)
+        self.sim.step(cfg.substeps)
+
+        if not self.sim.is_finite() or self.sim.instability_count() > self._instabilities:
+            info = self._physics_error_info()
+            return self._last_obs.copy(), 0.0, True, False, info
+
+        obs, info = self._observe()
+        reward, terms = scoop_reward(info["tip_to_pile_m"], info["tip_to_terminal_m"], info["penetrating"],
+                                     float(obs[0]), cfg.reward)
+        info.update(terms)
+        terminated = info["success"]
+        return obs, float(reward), bool(terminated), False, info
+
+    def render(self) -> np.ndarray | None:
+        if self.render_mode != "rgb_array":
+            return None
+        import mujoco  # noqa: PLC0415
+
+        if self._renderer is None:
+            self._renderer = mujoco.Renderer(self.sim.model, height=480, width=640)
+        self._renderer.update_scene(self.sim.data, camera="side")
+        return self._renderer.render()
+
+    def close(self) -> None:
+        if self._renderer is not None:
+            self._renderer.close()
+            self._renderer = None
+
+    # ------------------------------------------------------------------ internals
+    def _observe(self) -> tuple[np.ndarray, dict[str, Any]]:
+        sim, cfg = self.sim, self.config
+        inside = sim.particles_in_bucket()
+        self._ever_inside |= inside
+        true_mass = float(sim.particle_masses[inside].sum())
+        tip = sim.tip_world
+        offsets = sim.particle_positions - tip
+        distances = np.sqrt(np.einsum("ij,ij->i", offsets, offsets))
+        outside = ~inside
+        tip_to_pile = float(max(distances[outside].min() - cfg.pile.radius_m, 0.0)) if outside.any() else 0.0
+        nearest = float(distances.min()) if len(distances) else np.inf
+        tip_to_terminal = float(np.linalg.norm(tip - self._terminal))
+        mass = true_mass if self._mass_estimator is None else self._mass_estimator.estimate(sim)
+        now = Measurements(mass_kg=mass, pile_distance_m=tip_to_pile, speed_mps=sim.odometry_speed_mps,
+                           lift_rad=sim.lift_rad, tilt_rad=sim.tilt_rad)
+        obs = state_mod.build_state(now, self._previous, cfg.reward.rated_load_kg)
+        self._previous = now
+        self._last_obs = obs
+        success = tip_to_terminal <= cfg.reward.epsilon_m
+        info: dict[str, Any] = {
+            "particles_in_bucket": int(inside.sum()),
+            "mass_in_bucket_kg": true_mass,
+            "fill_factor": true_mass / cfg.reward.rated_load_kg,
+            "penetrating": is_penetrating(nearest, cfg.reward),
+            "success": bool(success),
+            "spilled": int((self._ever_inside & ~inside).sum()),
+            "physics_error": False,
+            "elapsed_s": sim.elapsed_s,
+            "tip_to_pile_m": tip_to_pile,
+            "tip_to_terminal_m": tip_to_terminal,
+            "lift_torque_nm": sim.lift_torque_nm,
+            "tilt_torque_nm": sim.tilt_torque_nm,
+        }
+        if success:
+            info["cycle_time_s"] = sim.elapsed_s
+        return obs, info
+
+    def _physics_error_info(self) -> dict[str, Any]:
+        return {"particles_in_bucket": 0, "mass_in_bucket_kg": 0.0, "fill_factor": 0.0, "penetrating": False,
+                "success": False, "spilled": 0, "physics_error": True, "elapsed_s": self.sim.elapsed_s,
+                "tip_to_pile_m": float("nan"), "tip_to_terminal_m": float("nan"),
+                "lift_torque_nm": float("nan"), "tilt_torque_nm": float("nan"),
+                "reward_progress": 0.0, "reward_mass": 0.0}
+
+
+def make_scoop_env(config: ScoopConfig | None = None, render_mode: str | None = None,
+                   **overrides: Any) -> gym.Env:
+    """``gym.make("autoscoop/Scoop-v0", ...)`` entry point: the env inside a ``TimeLimit`` of ``env.max_episode_s``."""
+    env = ScoopEnv(config=config, render_mode=render_mode, **overrides)
+    return TimeLimit(env, max_episode_steps=env.config.max_episode_steps)

@@ -1,0 +1,70 @@
+"""How many particles the bucket holds: drop them in one at a time until it overflows.
+
+The loader stands still in its carry pose (arm fully raised, bucket fully curled, so the mouth
+faces up); particles fall one by one from above the middle of the mouth (between the top of the
+back plate and the cutting edge), each at a random spot across its width, and settle.
+The bucket is full when several drops in a row add nothing.
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import mujoco
+import numpy as np
+
+from autoscoop import kinematics
+from autoscoop.config import ScoopConfig
+from autoscoop.sim.scene import ScoopSim
+
+HOLD_LIFT_RAD = kinematics.LIFT_RANGE_RAD[0]
+HOLD_TILT_RAD = kinematics.TILT_RANGE_RAD[0]
+"""Carry pose: arm fully raised, bucket fully curled."""
+DROP_HEIGHT_M = 0.10
+"""Height of each drop above the middle of the bucket's mouth, m."""
+SETTLE_PER_DROP_S = 0.75
+
+
+def fill_until_overflow(config: ScoopConfig | None = None, max_particles: int = 40, patience: int = 4,
+                        seed: int = 0) -> list[int]:
+    """Drop particles into the held bucket; return the count inside after each drop.
+
+    Args:
+        config: scene configuration (particle size and mass, physics step); the pile itself is unused.
+        max_particles: particles available to drop.
+        patience: stop after this many drops in a row that did not raise the count.
+        seed: seed of the drop positions.
+
+    Returns:
+        Counts of particles inside the bucket after each drop; ``max(counts)`` is the capacity.
+    """
+    config = config or ScoopConfig()
+    config = replace(config, pile=replace(config.pile, n_particles=max_particles, variants=1))
+    sim = ScoopSim(config)
+    m, d = sim.model, sim.data
+    m.opt.enableflags &= ~int(mujoco.mjtEnableBit.mjENBL_SLEEP)  # teleported particles must not stay asleep
+    rng = np.random.default_rng(seed)
+    mujoco.mj_resetData(m, d)
+    tilt = HOLD_TILT_RAD
+    d.qpos[sim._root_qpos:sim._root_qpos + 7] = [-1.5, 0.0, kinematics.CHASSIS_CENTRE_HEIGHT_M, 1, 0, 0, 0]
+    d.qpos[sim._lift_qpos], d.qpos[sim._tilt_qpos] = HOLD_LIFT_RAD, tilt
+    d.act[sim._lift_act_state], d.act[sim._tilt_act_state] = HOLD_LIFT_RAD, tilt
+    for i in range(max_particles):  # park every particle in a row far to the side
+        sim.set_particle(i, np.array([2.0 + 0.1 * i, 3.0, config.pile.radius_m]))
+    mujoco.mj_forward(m, d)
+    mujoco.mj_step(m, d, nstep=int(0.5 / m.opt.timestep))
+    mouth = kinematics.BUCKET_INSIDE_POLYGON_M[1:3].mean(axis=0)
+    counts, best, stale = [], 0, 0
+    for i in range(max_particles):
+        origin = d.xpos[sim._bucket]
+        rotation = d.xmat[sim._bucket].reshape(3, 3)
+        above = origin + rotation @ np.array([mouth[0], 0.0, mouth[1]])
+        y = rng.uniform(-0.8, 0.8) * kinematics.BUCKET_INNER_HALF_WIDTH_M
+        sim.set_particle(i, above + np.array([rng.uniform(-0.02, 0.02), y, DROP_HEIGHT_M]))
+        mujoco.mj_step(m, d, nstep=int(SETTLE_PER_DROP_S / m.opt.timestep))
+        counts.append(int(sim.particles_in_bucket().sum()))
+        stale = 0 if counts[-1] > best else stale + 1
+        best = max(best, counts[-1])
+        if stale >= patience:
+            break
+    return counts

@@ -1,0 +1,84 @@
+"""Layout of the particle pile, numpy only.
+
+Frame ("pile frame" = world): x forward from the pile's toe (the front of the first particle
+touching the ground), y left, z up from the ground; metres.
+
+The paper stacks 72 spheres in three layers of 4, 3 and 2 rows (8 across). We keep that stack and
+set its face slope exactly: rows within a layer are ``s = 4 r cos(angle)`` apart and each upper row
+rests in the gap between two rows below, ``h = 2 r sin(angle)`` higher, so the line through the
+layers' front particles rises at ``angle``. At 60 deg the rows touch (close packing); a shallower
+pile has gaps narrower than a particle, so nothing falls through. Other particle counts fill
+layers of b, b-1, ... 1 rows, bottom first, front to back.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from autoscoop.config import PileConfig
+
+GAP_M = 0.0005
+"""Clearance added between neighbours so no two particles start in contact overlap."""
+
+
+def layer_rows(n_particles: int, across: int) -> list[int]:
+    """Rows in each layer, bottom first: the smallest pyramid b, b-1, ... that holds the particles."""
+    rows_needed = math.ceil(n_particles / across)
+    base = 1
+    while base * (base + 1) // 2 < rows_needed:
+        base += 1
+    rows, left = [], rows_needed
+    for k in range(base):
+        take = min(base - k, left)
+        if take <= 0:
+            break
+        rows.append(take)
+        left -= take
+    return rows
+
+
+def pile_layout(pile: PileConfig, rng: np.random.Generator | None = None) -> np.ndarray:
+    """Particle centres in the pile frame.
+
+    Args:
+        pile: pile configuration (angle, count, radius, rows across, jitter).
+        rng: source of the small random jitter in x and y; ``None`` gives the exact layout.
+
+    Returns:
+        (n_particles, 3) array of centres, metres.
+    """
+    r = pile.radius_m + GAP_M / 2
+    angle = math.radians(pile.angle_deg)
+    row_spacing = 4 * r * math.cos(angle)
+    layer_height = 2 * r * math.sin(angle)
+    ys = (np.arange(pile.across) - (pile.across - 1) / 2) * 2 * r
+    centres = []
+    for k, n_rows in enumerate(layer_rows(pile.n_particles, pile.across)):
+        x0 = pile.radius_m + k * row_spacing / 2
+        z = pile.radius_m + k * layer_height + GAP_M * k
+        for j in range(n_rows):
+            for y in ys:
+                if len(centres) < pile.n_particles:
+                    centres.append((x0 + j * row_spacing, y, z))
+    out = np.array(centres, dtype=float)
+    if rng is not None and pile.jitter_m > 0:
+        # horizontal jitter only, bounded by the clearance left between touching neighbours
+        amp = min(pile.jitter_m, max(row_spacing - 2 * pile.radius_m, 0.0) / 2 + GAP_M / 2)
+        out[:, :2] += rng.uniform(-amp, amp, size=(len(out), 2)) * np.array([1.0, 0.2])
+    return out
+
+
+def face_slope_deg(centres: np.ndarray, radius_m: float) -> float:
+    """Mean slope of the pile's face: least-squares line through each layer's front particle, degrees."""
+    z_levels = np.round((centres[:, 2] - radius_m) / (radius_m * 0.5))
+    fronts = []
+    for level in np.unique(z_levels):
+        layer = centres[z_levels == level]
+        fronts.append((layer[:, 0].min(), layer[:, 2].mean()))
+    if len(fronts) < 2:
+        return float("nan")
+    x, z = np.array(fronts).T
+    slope = np.polyfit(x, z, 1)[0]
+    return float(math.degrees(math.atan(slope)))

@@ -1,0 +1,268 @@
+"""The scooping scene in MuJoCo: build it from a config, reset it, drive it, read it by name.
+
+World frame = pile frame: x forward from the pile's toe, y left, z up from the ground, metres.
+This module owns the simulator; the task (state, reward, episode) lives in ``autoscoop.envs``.
+"""
+
+from __future__ import annotations
+
+from importlib import resources
+
+import mujoco
+import numpy as np
+
+from autoscoop import kinematics
+from autoscoop.config import ScoopConfig
+from autoscoop.sim.pile import pile_layout
+
+WHEELS = ("wheel_fl", "wheel_fr", "wheel_rl", "wheel_rr")
+WHEEL_RADIUS_M = 0.127
+INSTABILITY_WARNINGS = (
+    mujoco.mjtWarning.mjWARN_BADQACC,
+    mujoco.mjtWarning.mjWARN_BADQPOS,
+    mujoco.mjtWarning.mjWARN_BADQVEL,
+    mujoco.mjtWarning.mjWARN_CNSTRFULL,
+    mujoco.mjtWarning.mjWARN_CONTACTFULL,
+)
+PARTICLE_CONTYPE, PARTICLE_CONAFFINITY = 2, 7
+"""Collision bits: ground 1, particles 2, robot 4. Particles touch all three; the robot is not
+tested against itself."""
+
+
+def scene_path() -> str:
+    """Path of the shipped ``scene.xml`` (which includes ``loader.xml``)."""
+    return str(resources.files("autoscoop") / "assets" / "scene.xml")
+
+
+SETTLE_EXTRA_S = 3.0
+"""Longest extra time a new pile may take to come to rest after ``pile.settle_s``."""
+SLEEP_TOLERANCE = 0.03
+"""Bodies slower than this (MuJoCo's sleep_tolerance) fall asleep; a resting pile then costs almost nothing."""
+
+
+def contact_time_constant_s(timestep_s: float) -> float:
+    """Contact stiffness time constant: MuJoCo's default 0.02 s, never below two physics steps."""
+    return max(0.02, 2.0 * timestep_s)
+
+
+def build_spec(config: ScoopConfig) -> mujoco.MjSpec:
+    """The scene as an editable MjSpec: loader, ground and the pile's particles, limits from the config."""
+    spec = mujoco.MjSpec.from_file(scene_path())
+    spec.option.timestep = config.env.timestep_s
+    spec.option.enableflags |= int(mujoco.mjtEnableBit.mjENBL_SLEEP)
+    spec.option.sleep_tolerance = SLEEP_TOLERANCE
+    robot = config.robot
+    spec.actuator("lift").forcerange = [-robot.lift_torque_limit_nm, robot.lift_torque_limit_nm]
+    spec.actuator("tilt").forcerange = [-robot.tilt_torque_limit_nm, robot.tilt_torque_limit_nm]
+    spec.actuator("lift").ctrlrange = [-robot.lift_speed_radps, robot.lift_speed_radps]
+    spec.actuator("tilt").ctrlrange = [-robot.tilt_speed_radps, robot.tilt_speed_radps]
+    for wheel in WHEELS:
+        spec.actuator(wheel).forcerange = [-robot.wheel_torque_limit_nm, robot.wheel_torque_limit_nm]
+        spec.geom(wheel).friction = [robot.ground_friction, 0.005, 0.0001]
+    pile = config.pile
+    for i, centre in enumerate(pile_layout(pile)):
+        body = spec.worldbody.add_body(name=f"particle_{i:03d}", pos=centre.tolist())
+        body.add_freejoint(name=f"particle_{i:03d}")
+        body.add_geom(name=f"particle_{i:03d}", type=mujoco.mjtGeom.mjGEOM_SPHERE,
+                      size=[pile.radius_m, 0, 0], mass=pile.particle_mass_kg,
+                      contype=PARTICLE_CONTYPE, conaffinity=PARTICLE_CONAFFINITY, condim=3,
+                      friction=[pile.friction, 0.0, 0.0], rgba=[0.55, 0.45, 0.35, 1.0])
+    time_constant = contact_time_constant_s(config.env.timestep_s)
+    for geom in spec.geoms:
+        geom.solref = [time_constant, 1.0]
+    return spec
+
+
+def compile_scene(config: ScoopConfig) -> mujoco.MjModel:
+    """Compile the scene and give each particle's spin its damping.
+
+    Rolling resistance: gravel is angular and does not roll like marbles. MuJoCo's rolling friction
+    (condim 6) would triple the contact rows; damping the particles' three rotational degrees of
+    freedom gives the same resistance at no cost per contact (the integrator treats it implicitly).
+    """
+    model = build_spec(config).compile()
+    for i in range(config.pile.n_particles):
+        dof = model.jnt_dofadr[model.joint(f"particle_{i:03d}").id]
+        model.dof_damping[dof + 3:dof + 6] = config.pile.rolling_damping_nms
+    return model
+
+
+class ScoopSim:
+    """The loader and the pile in MuJoCo, with accessors by name.
+
+    Args:
+        config: scene configuration (robot limits, pile, physics step).
+    """
+
+    def __init__(self, config: ScoopConfig) -> None:
+        self.config = config
+        self.model = compile_scene(config)
+        self.data = mujoco.MjData(self.model)
+        m = self.model
+        self.n_particles = config.pile.n_particles
+        self._particle_bodies = np.array([m.body(f"particle_{i:03d}").id for i in range(self.n_particles)], dtype=int)
+        self._particle_qpos = np.array([m.joint(f"particle_{i:03d}").qposadr[0] for i in range(self.n_particles)], dtype=int)
+        self._particle_mass = m.body_mass[self._particle_bodies].copy()
+        self._bucket = m.body("bucket").id
+        self._chassis = m.body("chassis").id
+        self._tip = m.site("tip").id
+        self._bucket_joint = m.site("bucket_joint").id
+        self._root_qpos = m.joint("root").qposadr[0]
+        self._lift_qpos = m.joint("lift").qposadr[0]
+        self._tilt_qpos = m.joint("tilt").qposadr[0]
+        self._lift_act = m.actuator("lift").id
+        self._tilt_act = m.actuator("tilt").id
+        self._wheel_acts = np.array([m.actuator(w).id for w in WHEELS], dtype=int)
+        self._wheel_dofs = np.array([m.joint(w).dofadr[0] for w in WHEELS], dtype=int)
+        self._lift_act_state = m.actuator_actadr[self._lift_act]
+        self._tilt_act_state = m.actuator_actadr[self._tilt_act]
+        self.time_origin_s = 0.0
+        self._settled: dict[int, mujoco.MjData] = {}
+
+    # ---------------------------------------------------------------- reset and stepping
+    def reset(self, rng: np.random.Generator | None = None) -> None:
+        """Start an episode: a settled pile (toe at x = 0), the robot's tip ``start_gap_m`` before it.
+
+        The pile is one of ``pile.variants`` jittered layouts, each settled once (until it rests) and
+        then restored by copying the whole simulator state, its sleeping pile included: a resting
+        pile costs almost nothing to simulate until the bucket touches it. The start gap varies by
+        up to ``robot.start_gap_jitter_m``. The episode clock (:attr:`elapsed_s`) starts here.
+        """
+        rng = rng if rng is not None else np.random.default_rng()
+        variant = int(rng.integers(self.config.pile.variants))
+        if variant not in self._settled:
+            self._settled[variant] = self._settle(variant)
+        mujoco.mj_copyData(self.data, self.model, self._settled[variant])
+        jitter = self.config.robot.start_gap_jitter_m
+        if jitter > 0:
+            self.data.qpos[self._root_qpos] += rng.uniform(-jitter, jitter)
+        mujoco.mj_kinematics(self.model, self.data)  # positions only: keeps the pile asleep
+        self.time_origin_s = float(self.data.time)
+
+    def _settle(self, variant: int) -> mujoco.MjData:
+        """Build pile ``variant`` (its own jitter), let it settle under gravity, return the state."""
+        m, d, cfg = self.model, self.data, self.config
+        mujoco.mj_resetData(m, d)
+        lift, tilt = cfg.robot.start_lift_rad, cfg.robot.start_tilt_rad
+        tip_x_chassis = kinematics.arm_pose(lift, tilt).tip[0]
+        d.qpos[self._root_qpos:self._root_qpos + 7] = [-cfg.robot.start_gap_m - tip_x_chassis, 0.0,
+                                                       kinematics.CHASSIS_CENTRE_HEIGHT_M, 1, 0, 0, 0]
+        d.qpos[self._lift_qpos] = lift
+        d.qpos[self._tilt_qpos] = tilt
+        d.act[self._lift_act_state] = lift
+        d.act[self._tilt_act_state] = tilt
+        centres = pile_layout(cfg.pile, np.random.default_rng([variant, 20211]))
+        for adr, centre in zip(self._particle_qpos, centres):
+            d.qpos[adr:adr + 7] = [*centre, 1, 0, 0, 0]
+        mujoco.mj_forward(m, d)
+        step = m.opt.timestep
+        mujoco.mj_step(m, d, nstep=int(round(cfg.pile.settle_s / step)))
+        robot_bodies = m.nbody - self.n_particles
+        for _ in range(int(round(SETTLE_EXTRA_S / step))):
+            if d.nbody_awake <= robot_bodies:
+                break
+            mujoco.mj_step(m, d)
+        settled = mujoco.MjData(m)
+        mujoco.mj_copyData(settled, m, d)
+        return settled
+
+    def command(self, forward_speed_mps: float, lift_rate_radps: float, tilt_rate_radps: float) -> None:
+        """Set the actuator inputs: wheel speed for a forward speed, and the servo setpoints' rates."""
+        d = self.data
+        d.ctrl[self._wheel_acts] = forward_speed_mps / WHEEL_RADIUS_M
+        d.ctrl[self._lift_act] = lift_rate_radps
+        d.ctrl[self._tilt_act] = tilt_rate_radps
+
+    def step(self, n_steps: int) -> None:
+        """Advance the physics by ``n_steps`` steps (in C, one call)."""
+        mujoco.mj_step(self.model, self.data, nstep=n_steps)
+
+    def instability_count(self) -> int:
+        """How many times MuJoCo has flagged an instability (bad acceleration, full buffers) since reset."""
+        return int(sum(self.data.warning[w].number for w in INSTABILITY_WARNINGS))
+
+    def is_finite(self) -> bool:
+        """Whether positions and velocities are all finite."""
+        return bool(np.isfinite(self.data.qpos).all() and np.isfinite(self.data.qvel).all())
+
+    # ---------------------------------------------------------------- named readings
+    @property
+    def elapsed_s(self) -> float:
+        """Seconds since the episode's start (after settling)."""
+        return float(self.data.time) - self.time_origin_s
+
+    @property
+    def lift_rad(self) -> float:
+        """Measured lift angle (potentiometer), rad; larger lowers the arm."""
+        return float(self.data.qpos[self._lift_qpos])
+
+    @property
+    def tilt_rad(self) -> float:
+        """Measured tilt angle (potentiometer), rad; larger tips the cutting edge down."""
+        return float(self.data.qpos[self._tilt_qpos])
+
+    @property
+    def lift_setpoint_rad(self) -> float:
+        """Where the lift servo is heading now (its integrated setpoint), rad."""
+        return float(self.data.act[self._lift_act_state])
+
+    @property
+    def tilt_setpoint_rad(self) -> float:
+        """Where the tilt servo is heading now (its integrated setpoint), rad."""
+        return float(self.data.act[self._tilt_act_state])
+
+    @property
+    def odometry_speed_mps(self) -> float:
+        """Forward speed from wheel odometry (mean wheel speed x radius), m/s; slip makes it differ from truth."""
+        return float(self.data.qvel[self._wheel_dofs].mean() * WHEEL_RADIUS_M)
+
+    @property
+    def lift_torque_nm(self) -> float:
+        """Actuator torque at the lift joint, N*m (sensor ``lift_torque``)."""
+        return float(self.data.sensor("lift_torque").data[0])
+
+    @property
+    def tilt_torque_nm(self) -> float:
+        """Actuator torque at the tilt (bucket) joint, N*m (sensor ``tilt_torque``)."""
+        return float(self.data.sensor("tilt_torque").data[0])
+
+    @property
+    def tip_world(self) -> np.ndarray:
+        """Bucket cutting edge in the world frame, (3,) m."""
+        return self.data.site_xpos[self._tip].copy()
+
+    @property
+    def bucket_joint_world(self) -> np.ndarray:
+        """Tilt joint in the world frame, (3,) m."""
+        return self.data.site_xpos[self._bucket_joint].copy()
+
+    @property
+    def chassis_pose(self) -> tuple[np.ndarray, np.ndarray]:
+        """Chassis centre position (3,) m and rotation matrix (3, 3) in the world frame."""
+        return self.data.xpos[self._chassis].copy(), self.data.xmat[self._chassis].reshape(3, 3).copy()
+
+    @property
+    def particle_positions(self) -> np.ndarray:
+        """Particle centres in the world frame, (n, 3) m."""
+        return self.data.xpos[self._particle_bodies]
+
+    @property
+    def particle_masses(self) -> np.ndarray:
+        """Mass of each particle, (n,) kg."""
+        return self._particle_mass
+
+    def particles_in_bucket(self) -> np.ndarray:
+        """(n,) mask of particles whose centre lies inside the bucket's volume (in the bucket's own frame)."""
+        origin = self.data.xpos[self._bucket]
+        rotation = self.data.xmat[self._bucket].reshape(3, 3)
+        local = (self.particle_positions - origin) @ rotation
+        return kinematics.inside_bucket(local)
+
+    def set_particle(self, index: int, position: np.ndarray) -> None:
+        """Teleport one particle (at rest) to a world position; for scenes with sleeping disabled."""
+        adr = self._particle_qpos[index]
+        self.data.qpos[adr:adr + 7] = [*position, 1, 0, 0, 0]
+        body = self._particle_bodies[index]
+        dof = self.model.jnt_dofadr[self.model.body_jntadr[body]]
+        self.data.qvel[dof:dof + 6] = 0.0
+

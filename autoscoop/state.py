@@ -1,0 +1,144 @@
+"""The paper's 12-number state and the action scaling: the one place the env, ROS node and exports use.
+
+State, in this order (paper Sec. III-C; SPEC.md):
+
+| index | name      | meaning                                               | unit | frame                   |
+|-------|-----------|-------------------------------------------------------|------|-------------------------|
+| 0     | w         | mass in the bucket / rated load                       | -    |                         |
+| 1     | tip_x     | bucket cutting edge, forward                          | m    | chassis (x fwd from centre) |
+| 2     | tip_z     | bucket cutting edge, up                               | m    | chassis (z up from ground)  |
+| 3     | joint_x   | bucket (tilt) joint, forward                          | m    | chassis                 |
+| 4     | joint_z   | bucket (tilt) joint, up                               | m    | chassis                 |
+| 5     | d_pile    | distance from the tip to the pile's surface           | m    |                         |
+| 6     | v         | forward drive speed (wheel odometry)                  | m/s  |                         |
+| 7     | lift      | lift angle (positive lowers the arm)                  | rad  |                         |
+| 8     | tilt      | tilt angle (positive tips the cutting edge down)      | rad  |                         |
+| 9     | dv        | change of v since the previous step                   | m/s  |                         |
+| 10    | dlift     | change of lift since the previous step                | rad  |                         |
+| 11    | dtilt     | change of tilt since the previous step                | rad  |                         |
+
+The tip and joint positions come from the arm's forward kinematics at the measured joint angles
+(what the robot itself can compute), not from the simulator's ground truth.
+
+Actions are 3 numbers in [-1, 1]: drive, lift, tilt. As in the paper's code, each one moves its
+commanded target by ``action * (upper limit - lower limit)``, clipped to the limits.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from autoscoop import kinematics
+
+STATE_NAMES = ("w", "tip_x", "tip_z", "joint_x", "joint_z", "d_pile", "v", "lift", "tilt", "dv", "dlift", "dtilt")
+STATE_UNITS = ("-", "m", "m", "m", "m", "m", "m/s", "rad", "rad", "m/s", "rad", "rad")
+STATE_SIZE = len(STATE_NAMES)
+ACTION_NAMES = ("drive", "lift", "tilt")
+ACTION_SIZE = len(ACTION_NAMES)
+
+
+@dataclass(frozen=True)
+class Measurements:
+    """What the robot measures at one control step.
+
+    Attributes:
+        mass_kg: payload in the bucket (counted particles in simulation, torque estimate on the robot), kg.
+        pile_distance_m: distance from the bucket tip to the pile, m (laser range on the robot).
+        speed_mps: forward speed from wheel odometry, m/s.
+        lift_rad: lift angle, rad (positive lowers the arm).
+        tilt_rad: tilt angle, rad (positive tips the cutting edge down).
+    """
+
+    mass_kg: float
+    pile_distance_m: float
+    speed_mps: float
+    lift_rad: float
+    tilt_rad: float
+
+    def is_finite(self) -> bool:
+        """Whether every reading is a finite number."""
+        return all(math.isfinite(x) for x in (self.mass_kg, self.pile_distance_m, self.speed_mps,
+                                              self.lift_rad, self.tilt_rad))
+
+
+def build_state(now: Measurements, previous: Measurements | None, rated_load_kg: float) -> np.ndarray:
+    """The 12-number state (float32) from this step's and the previous step's measurements.
+
+    Args:
+        now: this step's measurements.
+        previous: the previous step's, or ``None`` at the first step (changes are then zero).
+        rated_load_kg: the bucket's rated load, for w = mass / rated load.
+
+    Returns:
+        (12,) float32 array in the order of :data:`STATE_NAMES`.
+    """
+    before = now if previous is None else previous
+    pose = kinematics.arm_pose(now.lift_rad, now.tilt_rad)
+    return np.array([
+        now.mass_kg / rated_load_kg,
+        pose.tip[0], pose.tip[1],
+        pose.bucket_joint[0], pose.bucket_joint[1],
+        now.pile_distance_m,
+        now.speed_mps, now.lift_rad, now.tilt_rad,
+        now.speed_mps - before.speed_mps, now.lift_rad - before.lift_rad, now.tilt_rad - before.tilt_rad,
+    ], dtype=np.float32)
+
+
+@dataclass(frozen=True)
+class CommandLimits:
+    """Limits of the commanded targets.
+
+    Attributes:
+        max_speed_mps: drive speed limit, forward and back, m/s.
+        lift_range_rad: (lower, upper) lift angle, rad.
+        tilt_range_rad: (lower, upper) tilt angle, rad.
+    """
+
+    max_speed_mps: float = 0.1
+    lift_range_rad: tuple[float, float] = kinematics.LIFT_RANGE_RAD
+    tilt_range_rad: tuple[float, float] = kinematics.TILT_RANGE_RAD
+
+    @property
+    def low(self) -> np.ndarray:
+        """Lower limits of (speed m/s, lift rad, tilt rad)."""
+        return np.array([-self.max_speed_mps, self.lift_range_rad[0], self.tilt_range_rad[0]])
+
+    @property
+    def high(self) -> np.ndarray:
+        """Upper limits of (speed m/s, lift rad, tilt rad)."""
+        return np.array([self.max_speed_mps, self.lift_range_rad[1], self.tilt_range_rad[1]])
+
+
+def validate_action(action: np.ndarray | list[float]) -> np.ndarray:
+    """Check an action's shape and values; clip it to [-1, 1].
+
+    Raises:
+        ValueError: if the action does not hold 3 numbers or any is NaN or infinite (never clipped:
+            a non-finite command means the controller is broken).
+    """
+    a = np.asarray(action, dtype=np.float64).reshape(-1)
+    if a.shape != (ACTION_SIZE,):
+        raise ValueError(f"action must hold {ACTION_SIZE} numbers {ACTION_NAMES}, got shape {np.shape(action)}")
+    if not np.all(np.isfinite(a)):
+        bad = [ACTION_NAMES[i] for i in np.flatnonzero(~np.isfinite(a))]
+        raise ValueError(f"action has non-finite values in {bad}: {a.tolist()}; allowed range [-1, 1]")
+    return np.clip(a, -1.0, 1.0)
+
+
+def advance_targets(targets: np.ndarray, action: np.ndarray, limits: CommandLimits) -> np.ndarray:
+    """Move the commanded targets (speed m/s, lift rad, tilt rad) by ``action * range``, clipped to the limits.
+
+    Args:
+        targets: (3,) current targets.
+        action: (3,) action; validated and clipped to [-1, 1] here.
+        limits: the targets' limits.
+
+    Returns:
+        (3,) new targets.
+    """
+    a = validate_action(action)
+    low, high = limits.low, limits.high
+    return np.clip(np.asarray(targets, dtype=np.float64) + a * (high - low), low, high)

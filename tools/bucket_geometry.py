@@ -1,0 +1,55 @@
+"""Print the bucket's collision plates for ``autoscoop/assets/loader.xml``.
+
+The bucket's inner outline is the paper's quadrilateral (SPEC.md): tilt joint J, point A 0.124 m
+from J at +46 deg, cutting edge (tip) 0.215 m from J at 0 deg, point B 0.10 m from J at -41 deg,
+angles measured from the J->tip line. Frame: the bucket body frame, x along J->tip, z toward A,
+y across the bucket. The shell is B->J->A (back) and B->tip (floor); A->tip is the mouth. Each
+plate is a box whose inner face lies on the outline, so a particle's centre inside the outline is
+inside the bucket. Run: ``python tools/bucket_geometry.py --width 0.44``.
+"""
+
+import argparse
+import math
+
+import numpy as np
+
+TIP = np.array([0.215, 0.0])
+A = 0.124 * np.array([math.cos(math.radians(46)), math.sin(math.radians(46))])
+B = 0.10 * np.array([math.cos(math.radians(-41)), math.sin(math.radians(-41))])
+J = np.zeros(2)
+CENTROID = (J + A + TIP + B) / 4
+
+
+def plate(p: np.ndarray, q: np.ndarray, thickness: float, half_width: float, name: str) -> str:
+    """One box along segment p->q (lengthened by the thickness to close the corners), pushed outward."""
+    d = (q - p) / np.linalg.norm(q - p)
+    n = np.array([d[1], -d[0]])
+    if np.dot(n, (p + q) / 2 - CENTROID) < 0:
+        n = -n
+    centre = (p + q) / 2 + n * thickness / 2
+    half_length = np.linalg.norm(q - p) / 2 + thickness / 2
+    # a rotation about +y by angle a maps x to (cos a, 0, -sin a)
+    pitch = -math.atan2(d[1], d[0])
+    return (f'<geom name="{name}" class="bucket_plate" size="{half_length:.5f} {half_width:.4f} {thickness / 2:.4f}" '
+            f'pos="{centre[0]:.5f} 0 {centre[1]:.5f}" euler="0 {pitch:.5f} 0"/>')
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser()
+    parser.add_argument("--width", type=float, default=0.44, help="inner width across the bucket, m")
+    parser.add_argument("--thickness", type=float, default=0.008, help="plate thickness, m")
+    args = parser.parse_args()
+    hw, t = args.width / 2, args.thickness
+    print(plate(B, TIP, t, hw + t, "bucket_floor"))
+    print(plate(J, B, t, hw + t, "bucket_back_lower"))
+    print(plate(A, J, t, hw + t, "bucket_back_upper"))
+    verts = " ".join(f"{x:.5f} {y:.4f} {z:.5f}" for x, z in (J, A, TIP, B) for y in (-t / 2, t / 2))
+    print(f'<mesh name="bucket_side" vertex="{verts}"/>')
+    print(f'side plates at y = +-{hw + t / 2:.4f}')
+    xs, zs = np.array([J, A, TIP, B]).T
+    area = 0.5 * abs(np.dot(xs, np.roll(zs, -1)) - np.dot(zs, np.roll(xs, -1)))
+    print(f"inner cross-section {area:.5f} m^2, volume {area * args.width * 1000:.2f} L")
+
+
+if __name__ == "__main__":
+    main()
