@@ -1,0 +1,47 @@
+"""``autoscoop``: the one command line. Each sub-command lives in ``autoscoop.commands``."""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import sys
+
+from autoscoop import __version__
+from autoscoop.config import ConfigError
+
+COMMANDS = [
+    "autoscoop.commands.demo_cmd",
+    "autoscoop.commands.evaluate_cmd",
+    "autoscoop.commands.bench_cmd",
+    "autoscoop.commands.config_cmd",
+]
+"""Modules that each offer ``register(subparsers)``; a new command adds one line here."""
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(prog="autoscoop", description="A wheel loader that learns to scoop.")
+    parser.add_argument("--version", action="version", version=f"autoscoop {__version__}")
+    subparsers = parser.add_subparsers(dest="command", metavar="COMMAND")
+    for name in COMMANDS:
+        importlib.import_module(name).register(subparsers)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    if not getattr(args, "func", None):
+        parser.print_help()
+        return 2
+    try:
+        return int(args.func(args) or 0)
+    except (ConfigError, ValueError) as error:
+        print(f"autoscoop {args.command}: error: {error}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print(f"autoscoop {args.command}: interrupted", file=sys.stderr)
+        return 130
+
+
+if __name__ == "__main__":
+    sys.exit(main())

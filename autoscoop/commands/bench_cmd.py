@@ -1,0 +1,31 @@
+"""``autoscoop bench``: physics steps/s, environment steps/s and real-time factor on one core."""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+from autoscoop.bench import run_bench
+from autoscoop.commands import add_config_args, config_from_args, write_json
+
+
+def register(subparsers: argparse._SubParsersAction) -> None:
+    parser = subparsers.add_parser("bench", help="measure simulator speed on one core", description=__doc__)
+    parser.add_argument("--episodes", type=int, default=10, help="scripted episodes per repeat")
+    parser.add_argument("--repeats", type=int, default=3, help="timed repeats (the median is reported)")
+    parser.add_argument("--json", type=Path, help="write the results to this JSON file")
+    add_config_args(parser)
+    parser.set_defaults(func=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    result = run_bench(config_from_args(args), episodes=args.episodes, repeats=args.repeats)
+    print(f"physics steps/s   {result['physics_steps_per_s']:10.0f}   (timestep {result['timestep_s']} s)")
+    print(f"env steps/s       {result['env_steps_per_s']:10.1f}")
+    repeats = ", ".join(f"{run['realtime_factor']:.1f}" for run in result["repeats"])
+    print(f"real-time factor  {result['realtime_factor']:10.1f}   (median of {len(result['repeats'])}: "
+          f"{repeats}; {result['cores']})")
+    if args.json:
+        write_json(args.json, result)
+        print(f"wrote {args.json}")
+    return 0

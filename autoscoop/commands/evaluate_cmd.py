@@ -1,0 +1,36 @@
+"""``autoscoop eval``: run a controller for N episodes and report fill factor, cycle time, success, spillage."""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+from autoscoop.agents.loading import load_policy
+from autoscoop.commands import add_config_args, config_from_args, write_json
+from autoscoop.evaluate import evaluate, format_table, summarize
+
+
+def register(subparsers: argparse._SubParsersAction) -> None:
+    parser = subparsers.add_parser("eval", help="evaluate a controller over N episodes",
+                                   description=__doc__)
+    parser.add_argument("--policy", default="heuristic", help="heuristic, default (shipped policy) or a policy file")
+    parser.add_argument("--episodes", type=int, default=100, help="number of episodes (default 100)")
+    parser.add_argument("--seed", type=int, default=0, help="seed of the first episode")
+    parser.add_argument("--json", type=Path, help="write the summary (and each episode) to this JSON file")
+    parser.add_argument("--trust", action="store_true", help="allow loading a pickled SB3 zip from outside its run directory")
+    add_config_args(parser)
+    parser.set_defaults(func=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    if args.episodes < 1:
+        raise SystemExit(f"--episodes must be at least 1, got {args.episodes}")
+    config = config_from_args(args)
+    policy = load_policy(args.policy, config, trust=args.trust)
+    results = evaluate(policy, config, args.episodes, seed=args.seed)
+    summary = summarize(results, config, args.policy)
+    print(format_table(summary))
+    if args.json:
+        write_json(args.json, summary)
+        print(f"wrote {args.json}")
+    return 0

@@ -1,0 +1,128 @@
+"""Run a controller for N episodes and measure it the way earth-moving people do.
+
+Definitions (SPEC.md): fill factor = mass in the bucket at the end / rated load; cycle time =
+seconds from the start to success (failed episodes are reported apart); success = the tip reached
+the terminal point in time; spillage = particles that were in the bucket and are not at the end.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import asdict, dataclass
+from typing import Any, Callable
+
+import numpy as np
+from tqdm import tqdm
+
+from autoscoop import __version__
+from autoscoop.agents.base import Policy
+from autoscoop.config import ScoopConfig
+from autoscoop.envs.scoop import make_scoop_env
+
+
+@dataclass(frozen=True)
+class EpisodeResult:
+    """The outcome of one episode."""
+
+    seed: int
+    fill_factor: float
+    mass_kg: float
+    particles: int
+    success: bool
+    cycle_time_s: float
+    """seconds to success; NaN when the episode failed."""
+    spilled: int
+    physics_error: bool
+    steps: int
+    episode_return: float
+
+
+StepHook = Callable[[int, np.ndarray, np.ndarray, float, dict], None]
+"""Called after each step with (step index, observation before, action, reward, info)."""
+
+
+def run_episode(env: Any, policy: Policy, seed: int, on_step: StepHook | None = None) -> EpisodeResult:
+    """Run one episode of ``policy`` in ``env`` (a Gymnasium env of autoscoop) from ``seed``."""
+    obs, info = env.reset(seed=seed)
+    policy.reset()
+    total, steps = 0.0, 0
+    while True:
+        action = policy.act(obs)
+        next_obs, reward, terminated, truncated, info = env.step(action)
+        if on_step is not None:
+            on_step(steps, obs, np.asarray(action), float(reward), info)
+        obs = next_obs
+        total += float(reward)
+        steps += 1
+        if terminated or truncated:
+            break
+    return EpisodeResult(
+        seed=seed, fill_factor=float(info["fill_factor"]), mass_kg=float(info["mass_in_bucket_kg"]),
+        particles=int(info["particles_in_bucket"]), success=bool(info["success"]),
+        cycle_time_s=float(info.get("cycle_time_s", math.nan)), spilled=int(info["spilled"]),
+        physics_error=bool(info["physics_error"]), steps=steps, episode_return=total)
+
+
+def evaluate(policy: Policy, config: ScoopConfig, episodes: int, seed: int = 0,
+             progress: bool = True) -> list[EpisodeResult]:
+    """Run ``episodes`` episodes with seeds ``seed, seed + 1, ...``; show a progress bar."""
+    env = make_scoop_env(config)
+    results: list[EpisodeResult] = []
+    bar = tqdm(range(episodes), desc=f"eval {policy.name}", unit="ep", disable=not progress)
+    try:
+        for i in bar:
+            results.append(run_episode(env, policy, seed + i))
+            fills = [r.fill_factor for r in results]
+            bar.set_postfix(fill=f"{np.mean(fills):.2f}", success=f"{np.mean([r.success for r in results]):.2f}")
+    finally:
+        env.close()
+    return results
+
+
+def _mean_std(values: list[float]) -> tuple[float, float]:
+    if not values:
+        return math.nan, math.nan
+    return float(np.mean(values)), float(np.std(values))
+
+
+def summarize(results: list[EpisodeResult], config: ScoopConfig, policy_name: str) -> dict[str, Any]:
+    """Summary statistics (mean and standard deviation over episodes) with the config used."""
+    fill_mean, fill_std = _mean_std([r.fill_factor for r in results])
+    mass_mean, mass_std = _mean_std([r.mass_kg for r in results])
+    cycle_mean, cycle_std = _mean_std([r.cycle_time_s for r in results if r.success])
+    spill_mean, spill_std = _mean_std([float(r.spilled) for r in results])
+    return {
+        "policy": policy_name,
+        "episodes": len(results),
+        "fill_factor_mean": fill_mean, "fill_factor_std": fill_std,
+        "mass_kg_mean": mass_mean, "mass_kg_std": mass_std,
+        "cycle_time_mean": cycle_mean, "cycle_time_std": cycle_std,
+        "success_rate": float(np.mean([r.success for r in results])) if results else math.nan,
+        "spillage_mean": spill_mean, "spillage_std": spill_std,
+        "physics_errors": int(sum(r.physics_error for r in results)),
+        "pile": {"angle_deg": config.pile.angle_deg, "n_particles": config.pile.n_particles},
+        "autoscoop_version": __version__,
+        "config": config.to_dict(),
+        "episodes_detail": [asdict(r) for r in results],
+    }
+
+
+def format_table(summary: dict[str, Any]) -> str:
+    """The summary as a small text table (mean +- std)."""
+    def pm(key: str, digits: int = 3) -> str:
+        mean, std = summary[f"{key}_mean"], summary[f"{key}_std"]
+        return "n/a" if math.isnan(mean) else f"{mean:.{digits}f} +- {std:.{digits}f}"
+
+    rows = [
+        ("policy", summary["policy"]),
+        ("pile", f"{summary['pile']['angle_deg']:g} deg, {summary['pile']['n_particles']} particles"),
+        ("episodes", str(summary["episodes"])),
+        ("fill factor", pm("fill_factor")),
+        ("mass in bucket (kg)", pm("mass_kg", 2)),
+        ("cycle time (s, successes)", pm("cycle_time", 2)),
+        ("success rate", f"{summary['success_rate']:.3f}"),
+        ("spillage (particles)", pm("spillage", 2)),
+        ("physics errors", str(summary["physics_errors"])),
+    ]
+    width = max(len(name) for name, _ in rows)
+    return "\n".join(f"{name:<{width}}  {value}" for name, value in rows)
