@@ -75,6 +75,7 @@ class RobotConfig(_Section):
     tilt_torque_limit_nm: float = _field(40.0, "N*m", "tilt actuator torque bound", 1.0, 500.0)
     wheel_torque_limit_nm: float = _field(12.0, "N*m", "torque bound of each wheel motor", 0.5, 100.0)
     ground_friction: float = _field(0.9, "-", "wheel-ground sliding friction coefficient", 0.05, 2.0)
+    bucket_friction: float = _field(0.4, "-", "sliding friction between the steel bucket and a particle", 0.05, 2.0)
 
 
 @dataclass(frozen=True)
@@ -100,7 +101,7 @@ class RewardConfig(_Section):
 
     _section = "reward"
     c_w: float = _field(10.0, "-", "weight c_w of the mass bonus c_w * w_t paid on reaching the terminal point", 0.0, 1000.0)
-    epsilon_m: float = _field(0.05, "m", "tolerance epsilon: the tip within it of the terminal point is success", 0.001, 0.5)
+    epsilon_m: float = _field(0.08, "m", "tolerance epsilon: the tip within it of the terminal point is success", 0.001, 0.5)
     delta_m: float = _field(0.06, "m", "Delta: the tip within it of a particle centre is 'penetrating'", 0.001, 0.5)
     terminal_dx_m: float = _field(0.10, "m", "terminal point x from the pile's toe (positive: over the pile, raised clear of it)", -1.0, 1.0)
     terminal_z_m: float = _field(0.30, "m", "terminal point height above the ground", 0.0, 1.0)
@@ -114,7 +115,7 @@ class EnvConfig(_Section):
     _section = "env"
     control_period_s: float = _field(0.25, "s", "time between actions", 0.02, 1.0)
     max_episode_s: float = _field(8.0, "s", "episode time limit", 0.5, 60.0)
-    timestep_s: float = _field(0.03125, "s", "MuJoCo physics step (a divisor of the control period)", 0.0005, 0.04)
+    timestep_s: float = _field(0.25 / 12, "s", "MuJoCo physics step (a divisor of the control period)", 0.0005, 0.04)
     mass_source: str = _field("truth", "-", "w_t from counting particles (truth) or from the joint torques (torque)",
                               choices=("truth", "torque"))
     load_cell_noise_nm: float = _field(0.2, "N*m", "std of torque noise when mass_source = torque", 0.0, 20.0)

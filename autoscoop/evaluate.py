@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import asdict, dataclass
+from pathlib import Path
 from typing import Any, Callable
 
 import numpy as np
@@ -18,6 +19,7 @@ from autoscoop import __version__
 from autoscoop.agents.base import Policy
 from autoscoop.config import ScoopConfig
 from autoscoop.envs.scoop import make_scoop_env
+from autoscoop.recorder import EpisodeRecorder, record_name
 
 
 @dataclass(frozen=True)
@@ -64,14 +66,23 @@ def run_episode(env: Any, policy: Policy, seed: int, on_step: StepHook | None = 
 
 
 def evaluate(policy: Policy, config: ScoopConfig, episodes: int, seed: int = 0,
-             progress: bool = True) -> list[EpisodeResult]:
-    """Run ``episodes`` episodes with seeds ``seed, seed + 1, ...``; show a progress bar."""
+             progress: bool = True, records_dir: str | Path | None = None,
+             records_meta: dict[str, Any] | None = None) -> list[EpisodeResult]:
+    """Run ``episodes`` episodes with seeds ``seed, seed + 1, ...``; show a progress bar.
+
+    With ``records_dir``, each episode's record (``autoscoop.records``) is saved there as
+    ``episode_SEED.npz``, with ``records_meta`` (and the policy's name) in its metadata.
+    """
     env = make_scoop_env(config)
+    if records_dir is not None:
+        env = EpisodeRecorder(env, {"policy": policy.name, "source": "eval", **(records_meta or {})})
     results: list[EpisodeResult] = []
     bar = tqdm(range(episodes), desc=f"eval {policy.name}", unit="ep", disable=not progress)
     try:
         for i in bar:
             results.append(run_episode(env, policy, seed + i))
+            if records_dir is not None:
+                env.save(Path(records_dir) / record_name(seed + i))
             fills = [r.fill_factor for r in results]
             bar.set_postfix(fill=f"{np.mean(fills):.2f}", success=f"{np.mean([r.success for r in results]):.2f}")
     finally:

@@ -5,7 +5,8 @@
    and curling the bucket a little each step;
 3. exit: curl fully, lift the tip to the terminal height and back off until the tip is over the
    terminal point (the tip's position along the ground is dead-reckoned from wheel odometry and
-   the arm's kinematics, starting where the tip met the pile).
+   the arm's kinematics since the tip met the pile; odometry over-reads while the wheels push
+   into the pile, which ``push_slip_fraction`` corrects).
 """
 
 from __future__ import annotations
@@ -41,6 +42,8 @@ class HeuristicParams:
     """share of the wheel odometry that is slip while pushing into the pile (dead reckoning)."""
     exit_tilt_rad: float = -0.5
     """tilt held on the way out (fully curled)."""
+    exit_height_margin_m: float = 0.02
+    """aim the tip this much above the terminal point (the arm sags under load)."""
     terminal_dx_m: float = RewardConfig().terminal_dx_m
     """terminal point x from the pile's toe."""
     terminal_z_m: float = RewardConfig().terminal_z_m
@@ -67,7 +70,8 @@ class HeuristicScooper:
 
     def __init__(self, params: HeuristicParams | None = None) -> None:
         self.params = params or HeuristicParams()
-        self._exit_lift = lift_for_tip_height(self.params.terminal_z_m, self.params.exit_tilt_rad)
+        self._exit_lift = lift_for_tip_height(self.params.terminal_z_m + self.params.exit_height_margin_m,
+                                              self.params.exit_tilt_rad)
         self.reset()
 
     def reset(self) -> None:

@@ -17,6 +17,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument("--episodes", type=int, default=100, help="number of episodes (default 100)")
     parser.add_argument("--seed", type=int, default=0, help="seed of the first episode")
     parser.add_argument("--json", type=Path, help="write the summary (and each episode) to this JSON file")
+    parser.add_argument("--records", type=Path, metavar="DIR",
+                        help="save each episode's record here (redraw figures with `autoscoop report DIR`)")
     parser.add_argument("--trust", action="store_true", help="allow loading a pickled SB3 zip from outside its run directory")
     add_config_args(parser)
     parser.set_defaults(func=run)
@@ -27,10 +29,13 @@ def run(args: argparse.Namespace) -> int:
         raise SystemExit(f"--episodes must be at least 1, got {args.episodes}")
     config = config_from_args(args)
     policy = load_policy(args.policy, config, trust=args.trust)
-    results = evaluate(policy, config, args.episodes, seed=args.seed)
+    results = evaluate(policy, config, args.episodes, seed=args.seed, records_dir=args.records,
+                       records_meta={"policy": args.policy})
     summary = summarize(results, config, args.policy)
     print(format_table(summary))
     if args.json:
         write_json(args.json, summary)
         print(f"wrote {args.json}")
+    if args.records:
+        print(f"wrote {args.episodes} episode records to {args.records}")
     return 0

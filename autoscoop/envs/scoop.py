@@ -45,7 +45,7 @@ class ScoopEnv(gym.Env):
     | 2     | tip_z   | cutting edge z, chassis frame            | m    | kinematics (site tip)             |
     | 3     | joint_x | tilt joint x, chassis frame              | m    | kinematics (site bucket_joint)    |
     | 4     | joint_z | tilt joint z, chassis frame              | m    | kinematics (site bucket_joint)    |
-    | 5     | d_pile  | tip to the nearest particle surface outside the bucket | m | particle_* bodies  |
+    | 5     | d_pile  | tip to the nearest particle surface not in or heaped on the bucket | m | particle_* |
     | 6     | v       | forward speed, wheel odometry            | m/s  | sensors wheel_*_vel               |
     | 7     | lift    | lift angle                               | rad  | sensor lift_pos                   |
     | 8     | tilt    | tilt angle                               | rad  | sensor tilt_pos                   |
@@ -108,7 +108,7 @@ class ScoopEnv(gym.Env):
         self._previous = None
         self._instabilities = self.sim.instability_count()
         if self.config.env.mass_source == "torque":
-            from autoscoop.payload import TorqueMassSensor  # noqa: PLC0415 - optional until used
+            from autoscoop.sim.load_cell import TorqueMassSensor  # noqa: PLC0415 - optional until used
             self._mass_estimator = TorqueMassSensor.for_env(cfg, self.np_random)
         obs, info = self._observe()
         info["physics_error"] = not np.all(np.isfinite(obs))
@@ -154,13 +154,13 @@ class ScoopEnv(gym.Env):
     # ------------------------------------------------------------------ internals
     def _observe(self) -> tuple[np.ndarray, dict[str, Any]]:
         sim, cfg = self.sim, self.config
-        inside = sim.particles_in_bucket()
+        inside, heaped = sim.particles_carried()
         self._ever_inside |= inside
         true_mass = float(sim.particle_masses[inside].sum())
         tip = sim.tip_world
         offsets = sim.particle_positions - tip
         distances = np.sqrt(np.einsum("ij,ij->i", offsets, offsets))
-        outside = ~inside
+        outside = ~(inside | heaped)
         tip_to_pile = float(max(distances[outside].min() - cfg.pile.radius_m, 0.0)) if outside.any() else 0.0
         nearest = float(distances.min()) if len(distances) else np.inf
         tip_to_terminal = float(np.linalg.norm(tip - self._terminal))

@@ -25,7 +25,7 @@ DROP_HEIGHT_M = 0.10
 SETTLE_PER_DROP_S = 0.75
 
 
-def fill_until_overflow(config: ScoopConfig | None = None, max_particles: int = 40, patience: int = 4,
+def fill_until_overflow(config: ScoopConfig | None = None, max_particles: int = 40, patience: int = 6,
                         seed: int = 0) -> list[int]:
     """Drop particles into the held bucket; return the count inside after each drop.
 
@@ -36,7 +36,7 @@ def fill_until_overflow(config: ScoopConfig | None = None, max_particles: int = 
         seed: seed of the drop positions.
 
     Returns:
-        Counts of particles inside the bucket after each drop; ``max(counts)`` is the capacity.
+        Counts of particles inside the bucket after each drop; see :func:`capacity`.
     """
     config = config or ScoopConfig()
     config = replace(config, pile=replace(config.pile, n_particles=max_particles, variants=1))
@@ -60,7 +60,7 @@ def fill_until_overflow(config: ScoopConfig | None = None, max_particles: int = 
         rotation = d.xmat[sim._bucket].reshape(3, 3)
         above = origin + rotation @ np.array([mouth[0], 0.0, mouth[1]])
         y = rng.uniform(-0.8, 0.8) * kinematics.BUCKET_INNER_HALF_WIDTH_M
-        sim.set_particle(i, above + np.array([rng.uniform(-0.02, 0.02), y, DROP_HEIGHT_M]))
+        sim.set_particle(i, above + np.array([rng.uniform(-0.04, 0.04), y, DROP_HEIGHT_M]))
         mujoco.mj_step(m, d, nstep=int(SETTLE_PER_DROP_S / m.opt.timestep))
         counts.append(int(sim.particles_in_bucket().sum()))
         stale = 0 if counts[-1] > best else stale + 1
@@ -68,3 +68,11 @@ def fill_until_overflow(config: ScoopConfig | None = None, max_particles: int = 
         if stale >= patience:
             break
     return counts
+
+
+def capacity(counts: list[int]) -> int:
+    """The most particles that stayed in the bucket over two drops in a row (a lucky heap that
+    slides off with the next drop does not count)."""
+    if len(counts) < 2:
+        return counts[0] if counts else 0
+    return max(min(a, b) for a, b in zip(counts, counts[1:]))

@@ -54,20 +54,28 @@ def pile_layout(pile: PileConfig, rng: np.random.Generator | None = None) -> np.
     row_spacing = 4 * r * math.cos(angle)
     layer_height = 2 * r * math.sin(angle)
     ys = (np.arange(pile.across) - (pile.across - 1) / 2) * 2 * r
+    amp = _jitter_amplitude(pile, row_spacing) if rng is not None else 0.0
+    # two neighbours may shift toward each other by up to 2 amp in x; lifting each layer by
+    # 2 amp / tan(angle) keeps them clear of the layer below
+    clearance = GAP_M + 2 * amp / math.tan(angle)
     centres = []
     for k, n_rows in enumerate(layer_rows(pile.n_particles, pile.across)):
         x0 = pile.radius_m + k * row_spacing / 2
-        z = pile.radius_m + k * layer_height + GAP_M * k
+        z = pile.radius_m + k * (layer_height + clearance)
         for j in range(n_rows):
             for y in ys:
                 if len(centres) < pile.n_particles:
                     centres.append((x0 + j * row_spacing, y, z))
     out = np.array(centres, dtype=float)
-    if rng is not None and pile.jitter_m > 0:
-        # horizontal jitter only, bounded by the clearance left between touching neighbours
-        amp = min(pile.jitter_m, max(row_spacing - 2 * pile.radius_m, 0.0) / 2 + GAP_M / 2)
-        out[:, :2] += rng.uniform(-amp, amp, size=(len(out), 2)) * np.array([1.0, 0.2])
+    if amp > 0:
+        out[:, 0] += rng.uniform(-amp, amp, size=len(out))
+        out[:, 1] += rng.uniform(-GAP_M / 2, GAP_M / 2, size=len(out))  # neighbours across touch
     return out
+
+
+def _jitter_amplitude(pile: PileConfig, row_spacing: float) -> float:
+    """Largest x-jitter that keeps neighbours in a row apart (half the gap between rows)."""
+    return min(pile.jitter_m, (row_spacing - 2 * pile.radius_m) / 2)
 
 
 def face_slope_deg(centres: np.ndarray, radius_m: float) -> float:

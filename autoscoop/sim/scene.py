@@ -59,6 +59,11 @@ def build_spec(config: ScoopConfig) -> mujoco.MjSpec:
     for wheel in WHEELS:
         spec.actuator(wheel).forcerange = [-robot.wheel_torque_limit_nm, robot.wheel_torque_limit_nm]
         spec.geom(wheel).friction = [robot.ground_friction, 0.005, 0.0001]
+    for geom in spec.geoms:
+        if geom.name.startswith("bucket_"):
+            # priority: the bucket's friction, not the larger of the two, governs bucket-particle contacts
+            geom.priority = 1
+            geom.friction = [robot.bucket_friction, 0.005, 0.0001]
     pile = config.pile
     for i, centre in enumerate(pile_layout(pile)):
         body = spec.worldbody.add_body(name=f"particle_{i:03d}", pos=centre.tolist())
@@ -251,12 +256,22 @@ class ScoopSim:
         """Mass of each particle, (n,) kg."""
         return self._particle_mass
 
-    def particles_in_bucket(self) -> np.ndarray:
-        """(n,) mask of particles whose centre lies inside the bucket's volume (in the bucket's own frame)."""
+    def particles_in_bucket_frame(self) -> np.ndarray:
+        """Particle centres in the bucket frame (x to the cutting edge, y across, z toward the mouth), (n, 3) m."""
         origin = self.data.xpos[self._bucket]
         rotation = self.data.xmat[self._bucket].reshape(3, 3)
-        local = (self.particle_positions - origin) @ rotation
-        return kinematics.inside_bucket(local)
+        return (self.particle_positions - origin) @ rotation
+
+    def particles_in_bucket(self) -> np.ndarray:
+        """(n,) mask of particles whose centre lies inside the bucket's volume (in the bucket's own frame)."""
+        return kinematics.inside_bucket(self.particles_in_bucket_frame())
+
+    def particles_carried(self) -> tuple[np.ndarray, np.ndarray]:
+        """Masks (inside the bucket, heaped on its mouth within one particle diameter), each (n,)."""
+        local = self.particles_in_bucket_frame()
+        inside = kinematics.inside_bucket(local)
+        heaped = ~inside & kinematics.heaped_on_bucket(local, 2.0 * self.config.pile.radius_m)
+        return inside, heaped
 
     def set_particle(self, index: int, position: np.ndarray) -> None:
         """Teleport one particle (at rest) to a world position; for scenes with sleeping disabled."""

@@ -1,0 +1,111 @@
+"""Record each episode of an autoscoop environment in the episode-record format (:mod:`autoscoop.records`).
+
+:class:`EpisodeRecorder` is a Gymnasium wrapper: wrap the environment, run episodes as usual, and
+:meth:`EpisodeRecorder.save` the one that just ended. Whoever drives the environment (evaluation, the
+demo, manual control) writes the same format.
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+
+from autoscoop import __version__
+from autoscoop.records import EpisodeRecord
+
+
+def record_name(seed: int) -> str:
+    """File name of the record of the episode started from ``seed``."""
+    return f"episode_{seed:05d}.npz"
+
+
+class EpisodeRecorder(gym.Wrapper):
+    """Keeps the time series of the current episode; :meth:`save` writes it with its outcome.
+
+    Args:
+        env: an autoscoop environment (``make_scoop_env``), possibly wrapped.
+        meta: metadata stored in every record (e.g. ``{"policy": "heuristic", "source": "eval"}``).
+    """
+
+    def __init__(self, env: gym.Env, meta: dict[str, Any] | None = None) -> None:
+        super().__init__(env)
+        self.base_meta = dict(meta or {})
+        self.record = EpisodeRecord()
+        self._return = 0.0
+        self._last_info: dict[str, Any] = {}
+
+    def reset(self, *, seed: int | None = None, options: dict | None = None) -> tuple[np.ndarray, dict]:
+        obs, info = self.env.reset(seed=seed, options=options)
+        scoop = self.env.unwrapped
+        sim, config = scoop.sim, scoop.config
+        particles = sim.particle_positions
+        self.record = EpisodeRecord(meta={
+            **self.base_meta,
+            "seed": seed,
+            "autoscoop_version": __version__,
+            "pile": {"angle_deg": config.pile.angle_deg, "n_particles": config.pile.n_particles,
+                     "radius_m": config.pile.radius_m},
+            "terminal_point_m": [config.reward.terminal_dx_m, config.reward.terminal_z_m],
+            "control_period_s": config.env.control_period_s,
+            "time_limit_s": config.env.max_episode_s,
+            "config": config.to_dict(),
+            "start": {
+                "state": np.asarray(obs, dtype=float).round(6).tolist(),
+                "lift_rad": sim.lift_rad, "tilt_rad": sim.tilt_rad,
+                "tip_world_m": sim.tip_world.round(6).tolist(),
+                "particles_xz_m": particles[:, [0, 2]].round(4).tolist(),
+            },
+        })
+        self._return, self._last_info = 0.0, dict(info)
+        return obs, info
+
+    def step(self, action: np.ndarray) -> tuple[np.ndarray, float, bool, bool, dict]:
+        obs, reward, terminated, truncated, info = self.env.step(action)
+        sim = self.env.unwrapped.sim
+        failed = bool(info.get("physics_error", False))
+        nan3 = [math.nan] * 3
+        self.record.append(
+            time_s=float(info["elapsed_s"]),
+            state=np.asarray(obs, dtype=float),
+            action=np.clip(np.asarray(action, dtype=float).reshape(-1), -1.0, 1.0),
+            reward=float(reward),
+            reward_progress=float(info["reward_progress"]),
+            reward_mass=float(info["reward_mass"]),
+            particles_in_bucket=int(info["particles_in_bucket"]),
+            mass_in_bucket_kg=float(info["mass_in_bucket_kg"]),
+            lift_rad=math.nan if failed else sim.lift_rad,
+            tilt_rad=math.nan if failed else sim.tilt_rad,
+            lift_torque_nm=float(info["lift_torque_nm"]),
+            tilt_torque_nm=float(info["tilt_torque_nm"]),
+            tip_world_m=nan3 if failed else sim.tip_world,
+            penetrating=bool(info["penetrating"]),
+        )
+        self._return += float(reward)
+        self._last_info = dict(info)
+        return obs, reward, terminated, truncated, info
+
+    def outcome(self) -> dict[str, Any]:
+        """The current episode's outcome so far (the same numbers evaluation reports)."""
+        info = self._last_info
+        cycle = info.get("cycle_time_s")
+        return {
+            "fill_factor": float(info.get("fill_factor", 0.0)),
+            "mass_kg": float(info.get("mass_in_bucket_kg", 0.0)),
+            "particles": int(info.get("particles_in_bucket", 0)),
+            "success": bool(info.get("success", False)),
+            "cycle_time_s": None if cycle is None else float(cycle),
+            "spilled": int(info.get("spilled", 0)),
+            "physics_error": bool(info.get("physics_error", False)),
+            "steps": len(self.record),
+            "episode_return": self._return,
+        }
+
+    def save(self, path: str | Path, **extra_meta: Any) -> Path:
+        """Write the current episode's record, its outcome added to the metadata."""
+        self.record.meta.update(extra_meta)
+        self.record.meta["outcome"] = self.outcome()
+        return self.record.save(path)

@@ -1,0 +1,141 @@
+"""Episode records as tables: load them, group them, summarise them (mean and std over episodes).
+
+Definitions as in ``autoscoop.evaluate`` (SPEC.md): the cycle time is averaged over successful
+episodes only; standard deviations are over episodes (``numpy.std``, ddof = 0), as ``autoscoop eval``
+prints them, so both report the same numbers for the same episodes.
+"""
+
+from __future__ import annotations
+
+import math
+from collections import defaultdict
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Iterable
+
+import numpy as np
+
+from autoscoop.phases import PhaseSpans, phase_spans
+from autoscoop.records import EpisodeRecord, load_record
+
+MANUAL = "manual"
+"""The controller label of records made by hand (``autoscoop teleop``)."""
+
+
+@dataclass(frozen=True)
+class Episode:
+    """One loaded record, where it came from, and its series ready to plot."""
+
+    path: Path
+    record: EpisodeRecord
+
+    @property
+    def meta(self) -> dict:
+        return self.record.meta
+
+    @property
+    def controller(self) -> str:
+        """``manual`` for records made by hand, else the policy as given on the command line."""
+        if self.meta.get("source") == "teleop":
+            return MANUAL
+        return str(self.meta.get("policy", "unknown"))
+
+    @property
+    def angle_deg(self) -> float:
+        return float(self.meta.get("pile", {}).get("angle_deg", math.nan))
+
+    @property
+    def outcome(self) -> dict:
+        return self.meta.get("outcome", {})
+
+    def series(self) -> dict[str, np.ndarray]:
+        """Time series with the episode's start prepended where it is known (torques have no start).
+
+        Keys: ``t`` (s), ``tip_x``, ``tip_z`` (world / pile frame, m), ``v`` (m/s), ``lift``, ``tilt``
+        (rad), and per step only: ``t_step``, ``tilt_torque``, ``lift_torque`` (N*m), ``particles``,
+        ``mass_kg``, ``penetrating``.
+        """
+        a = self.record.arrays()
+        start = self.meta.get("start")
+        t, tip = a["time_s"], a["tip_world_m"].reshape(-1, 3)
+        v, lift, tilt = a["state"].reshape(-1, 12)[:, 6], a["lift_rad"], a["tilt_rad"]
+        if start:
+            t = np.concatenate([[0.0], t])
+            tip = np.vstack([start["tip_world_m"], tip])
+            v = np.concatenate([[start["state"][6]], v])
+            lift = np.concatenate([[start["lift_rad"]], lift])
+            tilt = np.concatenate([[start["tilt_rad"]], tilt])
+        return {"t": t, "tip_x": tip[:, 0], "tip_z": tip[:, 2], "v": v, "lift": lift, "tilt": tilt,
+                "t_step": a["time_s"], "tilt_torque": a["tilt_torque_nm"], "lift_torque": a["lift_torque_nm"],
+                "particles": a["particles_in_bucket"], "mass_kg": a["mass_in_bucket_kg"],
+                "penetrating": a["penetrating"]}
+
+    def phases(self) -> PhaseSpans:
+        """Approach, fill and exit, from when the tip penetrated the pile."""
+        a = self.record.arrays()
+        return phase_spans(a["penetrating"], a["time_s"])
+
+    def pile_xz(self) -> np.ndarray | None:
+        """Particle centres (x, z) at the start, m, or ``None`` if the record lacks them."""
+        start = self.meta.get("start") or {}
+        points = start.get("particles_xz_m")
+        return None if points is None else np.asarray(points, dtype=float).reshape(-1, 2)
+
+
+def find_record_files(paths: Iterable[str | Path]) -> list[Path]:
+    """The ``.npz`` files named, and those under the folders named (recursively), sorted."""
+    found: list[Path] = []
+    for entry in paths:
+        entry = Path(entry)
+        if entry.is_dir():
+            found.extend(sorted(entry.rglob("*.npz")))
+        elif entry.is_file():
+            found.append(entry)
+        else:
+            raise ValueError(f"{entry}: no such record file or folder")
+    return found
+
+
+def load_episodes(paths: Iterable[str | Path]) -> list[Episode]:
+    """Load every record in ``paths`` (files or folders).
+
+    Raises:
+        ValueError: if nothing is found or a file is not an episode record.
+    """
+    files = find_record_files(paths)
+    if not files:
+        raise ValueError("no episode records (*.npz) found")
+    return [Episode(path=f, record=load_record(f)) for f in files]
+
+
+def group_episodes(episodes: Iterable[Episode]) -> dict[tuple[str, float], list[Episode]]:
+    """Episodes by (controller, pile angle), in first-seen order."""
+    groups: dict[tuple[str, float], list[Episode]] = defaultdict(list)
+    for episode in episodes:
+        groups[(episode.controller, episode.angle_deg)].append(episode)
+    return dict(groups)
+
+
+def _mean_std(values: list[float]) -> tuple[float, float]:
+    if not values:
+        return math.nan, math.nan
+    return float(np.mean(values)), float(np.std(values))
+
+
+def summarize_episodes(episodes: list[Episode]) -> dict[str, float]:
+    """Mean and std over episodes of mass (kg), particles, fill factor, cycle time (successes), spillage;
+    the success rate; and how many episodes, physics errors and the longest time limit."""
+    outcomes = [e.outcome for e in episodes]
+    out: dict[str, float] = {"episodes": len(outcomes)}
+    for key, values in (
+        ("mass_kg", [o["mass_kg"] for o in outcomes]),
+        ("particles", [float(o["particles"]) for o in outcomes]),
+        ("fill_factor", [o["fill_factor"] for o in outcomes]),
+        ("cycle_time", [o["cycle_time_s"] for o in outcomes if o["success"] and o["cycle_time_s"] is not None]),
+        ("spillage", [float(o["spilled"]) for o in outcomes]),
+    ):
+        out[f"{key}_mean"], out[f"{key}_std"] = _mean_std(values)
+    out["success_rate"] = float(np.mean([o["success"] for o in outcomes])) if outcomes else math.nan
+    out["physics_errors"] = int(sum(o["physics_error"] for o in outcomes))
+    out["time_limit_s"] = max((float(e.meta.get("time_limit_s", math.nan)) for e in episodes), default=math.nan)
+    return out

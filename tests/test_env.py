@@ -1,0 +1,84 @@
+"""The Gymnasium environment: API, determinism, reward terms, bad actions, physics errors."""
+
+import gymnasium as gym
+import numpy as np
+import pytest
+from gymnasium.utils.env_checker import check_env
+
+import autoscoop  # noqa: F401
+from autoscoop.envs.scoop import ScoopEnv
+from autoscoop.state import STATE_NAMES
+
+SMALL = {"pile.variants": 2}
+
+
+def rollout(env, seed, actions):
+    obs, _ = env.reset(seed=seed)
+    trace = [obs]
+    for action in actions:
+        obs, reward, terminated, truncated, info = env.step(action)
+        trace.append(np.append(obs, reward))
+        if terminated or truncated:
+            break
+    return trace
+
+
+def test_check_env_passes():
+    check_env(gym.make("autoscoop/Scoop-v0", **SMALL).unwrapped, skip_render_check=True)
+
+
+def test_spaces_match_the_paper():
+    env = ScoopEnv(**SMALL)
+    assert env.action_space.shape == (3,) and env.observation_space.shape == (12,)
+    assert len(STATE_NAMES) == 12 and STATE_NAMES[0] == "w" and STATE_NAMES[5] == "d_pile"
+
+
+def test_same_seed_gives_the_same_episode():
+    actions = np.random.default_rng(0).uniform(-1, 1, size=(12, 3))
+    first = rollout(ScoopEnv(**SMALL), 7, actions)
+    second = rollout(ScoopEnv(**SMALL), 7, actions)
+    assert len(first) == len(second)
+    for a, b in zip(first, second):
+        np.testing.assert_array_equal(a, b)
+
+
+def test_reward_terms_sum_to_the_reward_and_info_is_complete():
+    env = ScoopEnv(**SMALL)
+    env.reset(seed=1)
+    keys = {"particles_in_bucket", "mass_in_bucket_kg", "fill_factor", "penetrating", "success", "spilled",
+            "physics_error", "reward_progress", "reward_mass"}
+    for action in np.random.default_rng(1).uniform(-1, 1, size=(10, 3)):
+        _, reward, terminated, _, info = env.step(action)
+        assert keys <= set(info)
+        assert info["reward_progress"] + info["reward_mass"] == pytest.approx(reward)
+        assert 0.0 <= info["reward_progress"] <= 1.0
+        if terminated:
+            break
+
+
+def test_nan_action_is_refused_and_out_of_range_is_clipped():
+    env = ScoopEnv(**SMALL)
+    env.reset(seed=0)
+    with pytest.raises(ValueError, match="non-finite.*lift"):
+        env.step(np.array([0.0, np.nan, 0.0]))
+    with pytest.raises(ValueError, match="3 numbers"):
+        env.step(np.zeros(4))
+    env.step(np.array([50.0, 0.0, 0.0]))
+    assert env._targets[0] == pytest.approx(env.config.robot.max_speed_mps)
+
+
+def test_instability_ends_the_episode_with_a_physics_error():
+    env = ScoopEnv(**SMALL)
+    env.reset(seed=0)
+    env.sim.data.qvel[:] = 1e12  # a diverging simulation
+    obs, reward, terminated, truncated, info = env.step(np.zeros(3))
+    assert terminated and not truncated and info["physics_error"]
+    assert np.all(np.isfinite(obs)) and reward == 0.0
+
+
+def test_success_pays_the_mass_bonus_and_reports_cycle_time():
+    env = ScoopEnv(**SMALL, **{"reward.terminal_dx_m": -0.1, "reward.terminal_z_m": 0.03, "reward.epsilon_m": 0.1})
+    env.reset(seed=0)
+    _, reward, terminated, _, info = env.step(np.zeros(3))
+    assert terminated and info["success"] and info["cycle_time_s"] == pytest.approx(0.25)
+    assert info["reward_mass"] == pytest.approx(env.config.reward.c_w * info["fill_factor"])

@@ -1,0 +1,45 @@
+"""The scripted baseline scoops; the command line evaluates and benchmarks."""
+
+import json
+
+import numpy as np
+
+from autoscoop.agents.loading import heuristic_for
+from autoscoop.cli import main
+from autoscoop.config import ScoopConfig
+from autoscoop.envs.scoop import make_scoop_env
+from autoscoop.evaluate import run_episode
+
+
+def test_heuristic_scoops_and_reaches_the_terminal_point():
+    config = ScoopConfig()
+    env = make_scoop_env(config)
+    results = [run_episode(env, heuristic_for(config), seed) for seed in range(3)]
+    assert np.mean([r.fill_factor for r in results]) > 0.3
+    assert any(r.success for r in results)
+    assert not any(r.physics_error for r in results)
+
+
+def test_eval_command_writes_the_summary(tmp_path, capsys):
+    out = tmp_path / "eval.json"
+    assert main(["eval", "--policy", "heuristic", "--episodes", "2", "--set", "pile.angle_deg=28",
+                 "--json", str(out)]) == 0
+    summary = json.loads(out.read_text())
+    for key in ("episodes", "fill_factor_mean", "fill_factor_std", "mass_kg_mean", "cycle_time_mean", "cycle_time_std",
+                "success_rate", "spillage_mean", "physics_errors", "config"):
+        assert key in summary
+    assert summary["episodes"] == 2 and summary["config"]["pile"]["angle_deg"] == 28.0
+    assert "fill factor" in capsys.readouterr().out
+
+
+def test_bad_input_gives_a_clear_error_and_exit_code(capsys):
+    assert main(["eval", "--episodes", "1", "--set", "pile.angle_deg=99"]) == 2
+    assert "pile.angle_deg = 99.0 is out of range" in capsys.readouterr().err
+    assert main(["eval", "--policy", "nonsense", "--episodes", "1"]) == 2
+
+
+def test_bench_command_reports_the_three_speeds(tmp_path):
+    out = tmp_path / "bench.json"
+    assert main(["bench", "--episodes", "1", "--repeats", "1", "--set", "pile.variants=1", "--json", str(out)]) == 0
+    result = json.loads(out.read_text())
+    assert result["physics_steps_per_s"] > 0 and result["env_steps_per_s"] > 0 and result["realtime_factor"] > 0
