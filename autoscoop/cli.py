@@ -11,9 +11,14 @@ from autoscoop.config import ConfigError
 
 COMMANDS = [
     "autoscoop.commands.demo_cmd",
+    "autoscoop.commands.report_cmd",
+    "autoscoop.commands.compare_cmd",
+    "autoscoop.commands.teleop_cmd",
     "autoscoop.commands.evaluate_cmd",
+    "autoscoop.commands.train_cmd",
     "autoscoop.commands.bench_cmd",
     "autoscoop.commands.config_cmd",
+    "autoscoop.commands.payload_cmd",
 ]
 """Modules that each offer ``register(subparsers)``; a new command adds one line here."""
 

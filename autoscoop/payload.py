@@ -57,6 +57,10 @@ BUCKET_COM_IN_BUCKET_M = np.array([kinematics.BUCKET_COM_FROM_TILT_JOINT_M, 0.0]
 DEFAULT_PAYLOAD_COM_IN_BUCKET_M = (0.099, 0.008)
 """Centroid of the in-bucket quadrilateral (bucket frame, m): the payload's lever-arm point before calibration."""
 CALIBRATION_FORMAT = "autoscoop-payload-calibration/1"
+FIT_RCOND = 1e-2
+"""Directions of the (column-scaled) calibration fit weaker than this fraction of the strongest are
+left at the prior: holds at a single bucket angle (which differ only by the arm's sag under load)
+do not tell the lever arm's two components apart, and fitting them would fit noise."""
 
 
 # ------------------------------------------------------------------------- kinematics and Jacobians
@@ -356,7 +360,9 @@ def fit_calibration(lift_rad: np.ndarray, tilt_rad: np.ndarray, lift_torque_nm: 
         tau_L - G_L = o_L - m g (h(R(theta) b) + h(p_T) - h(p_L))
 
     Unknowns ``o_L, o_T, b_x, b_z``. Samples at one bucket angle fix only one direction of ``b``; the
-    fit then keeps the prior's value along the other (it solves for the smallest change from the prior).
+    fit then keeps the prior's value along the other (it solves for the smallest change from the
+    prior, ignoring directions weaker than :data:`FIT_RCOND`). Hold the bucket at several angles to
+    fit both.
 
     Args:
         lift_rad, tilt_rad: (n,) measured angles, rad.
@@ -397,7 +403,7 @@ def fit_calibration(lift_rad: np.ndarray, tilt_rad: np.ndarray, lift_torque_nm: 
     # scale the columns so the minimum-norm correction weighs N*m and metres alike
     scale = np.linalg.norm(design, axis=0)
     scale[scale == 0] = 1.0
-    step, _, rank, singular = np.linalg.lstsq(design / scale, target - design @ start, rcond=1e-6)
+    step, _, rank, singular = np.linalg.lstsq(design / scale, target - design @ start, rcond=FIT_RCOND)
     solution = start + step / scale
     residual = target - design @ solution
     fitted = replace(prior, lift_offset_nm=float(solution[0]), tilt_offset_nm=float(solution[1]),

@@ -124,3 +124,32 @@ def label_frame(frame: np.ndarray, text: str) -> np.ndarray:
     draw.rectangle([0, 0, image.width, int(size * 1.6)], fill=(20, 20, 20))
     draw.text((int(size * 0.5), int(size * 0.3)), text, fill=(240, 240, 240), font=font)
     return np.asarray(image)
+
+
+def render_episode(policy: Any, config: Any, seed: int, fps: float = 16.0,
+                   size: tuple[int, int] = FRAME_SIZE) -> tuple[FrameCapture, Any, Any]:
+    """Run one episode of ``policy`` while filming it.
+
+    Args:
+        policy: an ``autoscoop.agents.base.Policy``.
+        config: the ``ScoopConfig`` of the scene.
+        seed: the episode's seed (the same seed as in ``autoscoop eval`` gives the same episode).
+        fps: frames per simulated second, at least.
+        size: (width, height) of the frames, pixels.
+
+    Returns:
+        (the capture, holding ``frames``, ``times_s`` and ``fps``; the episode's record,
+        an ``EpisodeRecord``; its ``EpisodeResult``). The capture is closed.
+    """
+    from autoscoop.envs.scoop import make_scoop_env  # noqa: PLC0415 - keeps this module light to import
+    from autoscoop.evaluate import run_episode  # noqa: PLC0415
+    from autoscoop.recorder import EpisodeRecorder  # noqa: PLC0415
+
+    capture = FrameCapture(make_scoop_env(config), fps=fps, size=size)
+    recorder = EpisodeRecorder(capture, {"policy": policy.name, "source": "video"})
+    try:
+        result = run_episode(recorder, policy, seed)
+        recorder.record.meta["outcome"] = recorder.outcome()
+    finally:
+        recorder.close()
+    return capture, recorder.record, result

@@ -142,3 +142,9 @@ def advance_targets(targets: np.ndarray, action: np.ndarray, limits: CommandLimi
     a = validate_action(action)
     low, high = limits.low, limits.high
     return np.clip(np.asarray(targets, dtype=np.float64) + a * (high - low), low, high)
+
+
+STATE_CENTRE = np.array([0.5, 1.15, 0.15, 0.95, 0.2, 0.15, 0.0, 0.1, 0.2, 0.0, 0.0, 0.0], dtype=np.float32)
+STATE_SCALE = np.array([0.5, 0.1, 0.15, 0.05, 0.1, 0.15, 0.1, 0.2, 0.7, 0.05, 0.1, 0.25], dtype=np.float32)
+"""Fixed normalisation of the state for neural networks: (state - centre) / scale is about [-1, 1]
+over the reachable states (w 0..1, the arm's workspace, speeds and joint ranges, one step's change)."""

@@ -24,25 +24,25 @@ from autoscoop.state import CommandLimits, advance_targets
 class HeuristicParams:
     """Thresholds and rates of the scripted scoop (angles in rad, distances in m, times in s)."""
 
-    contact_gap_m: float = 0.025
+    contact_gap_m: float = 0.02
     """approach ends when the tip is this close to the pile."""
-    penetrate_steps: int = 8
+    penetrate_steps: int = 10
     """control steps of driving into the pile with the bucket level before curling."""
-    penetrate_tilt_rad: float = 0.0
+    penetrate_tilt_rad: float = 0.05
     """tilt held while penetrating (positive tips the cutting edge down)."""
-    fill_lift_step_rad: float = 0.02
+    fill_lift_step_rad: float = 0.01
     """lift target change per control step while filling (raising is negative)."""
-    fill_curl_step_rad: float = 0.06
+    fill_curl_step_rad: float = 0.1
     """tilt target change per control step while filling (curling is negative)."""
-    fill_speed_fraction: float = 1.0
+    fill_speed_fraction: float = 0.95
     """drive speed while filling, as a fraction of the limit."""
-    fill_steps: int = 6
+    fill_steps: int = 5
     """control steps spent filling."""
-    push_slip_fraction: float = 0.3
+    push_slip_fraction: float = 0.35
     """share of the wheel odometry that is slip while pushing into the pile (dead reckoning)."""
     exit_tilt_rad: float = -0.5
     """tilt held on the way out (fully curled)."""
-    exit_height_margin_m: float = 0.02
+    exit_height_margin_m: float = 0.0
     """aim the tip this much above the terminal point (the arm sags under load)."""
     terminal_dx_m: float = RewardConfig().terminal_dx_m
     """terminal point x from the pile's toe."""

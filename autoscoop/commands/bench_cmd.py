@@ -1,4 +1,7 @@
-"""``autoscoop bench``: physics steps/s, environment steps/s and real-time factor on one core."""
+"""``autoscoop bench``: physics steps/s, environment steps/s and real-time factor on one core.
+
+``autoscoop bench payload``: error of the payload mass estimated from the joint torques (paper eq. 4, 8).
+"""
 
 from __future__ import annotations
 
@@ -11,14 +14,22 @@ from autoscoop.commands import add_config_args, config_from_args, write_json
 
 def register(subparsers: argparse._SubParsersAction) -> None:
     parser = subparsers.add_parser("bench", help="measure simulator speed on one core", description=__doc__)
-    parser.add_argument("--episodes", type=int, default=10, help="scripted episodes per repeat")
+    parser.add_argument("target", nargs="?", choices=["payload"],
+                        help="'payload': error of the torque mass estimate (autoscoop.payload_bench) instead of speed")
+    parser.add_argument("--episodes", type=int, default=10, help="scripted episodes per repeat (payload: moving scoops)")
     parser.add_argument("--repeats", type=int, default=3, help="timed repeats (the median is reported)")
     parser.add_argument("--json", type=Path, help="write the results to this JSON file")
+    parser.add_argument("--records", type=Path, help="payload: write the static holds as records to this folder")
+    parser.add_argument("--calibration", type=Path, help="payload: the estimators' calibration YAML (default nominal)")
     add_config_args(parser)
     parser.set_defaults(func=run)
 
 
 def run(args: argparse.Namespace) -> int:
+    if args.target == "payload":
+        from autoscoop.commands.payload_cmd import run_payload_bench_cmd  # noqa: PLC0415
+
+        return run_payload_bench_cmd(args)
     result = run_bench(config_from_args(args), episodes=args.episodes, repeats=args.repeats)
     print(f"physics steps/s   {result['physics_steps_per_s']:10.0f}   (timestep {result['timestep_s']} s)")
     print(f"env steps/s       {result['env_steps_per_s']:10.1f}")

@@ -1,24 +1,98 @@
-"""``autoscoop demo``: show the loader scooping on the default pile and print its metrics."""
+"""``autoscoop demo``: watch the loader scoop the default pile; print its metrics, write a video and figures.
+
+Runs the controller for a few episodes (records in OUT/records), prints the metrics table, films the
+first episode off-screen (OUT/scoop.mp4 and OUT/scoop.gif) and draws the paper's Fig. 9 and Fig. 11
+from the records (OUT/report.md with its PNGs). ``autoscoop report OUT/records --out OUT`` redraws
+the figures without simulating.
+"""
 
 from __future__ import annotations
 
 import argparse
+import time
+from pathlib import Path
 
-from autoscoop.agents.loading import load_policy
-from autoscoop.commands import add_config_args, config_from_args
+from autoscoop.agents.base import Policy
+from autoscoop.agents.loading import PolicyError, load_policy
+from autoscoop.commands import add_config_args, config_from_args, write_json
+from autoscoop.config import ScoopConfig
 from autoscoop.evaluate import evaluate, format_table, summarize
+
+DEFAULT_OUT = Path("out/demo")
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
-    parser = subparsers.add_parser("demo", help="run the built-in controller on the default pile", description=__doc__)
-    parser.add_argument("--policy", default="heuristic", help="controller to show (default: heuristic)")
-    parser.add_argument("--episodes", type=int, default=10, help="episodes to run")
+    parser = subparsers.add_parser("demo", help="watch the shipped controller scoop: metrics, video, figures",
+                                   description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--policy", default="default", help="default (the shipped policy), heuristic or a policy file")
+    parser.add_argument("--episodes", type=int, default=10, help="episodes for the metrics table (default 10)")
+    parser.add_argument("--seed", type=int, default=0, help="seed of the first episode, the one filmed")
+    parser.add_argument("--out", type=Path, default=DEFAULT_OUT, help=f"output folder (default {DEFAULT_OUT})")
+    parser.add_argument("--fps", type=float, default=16.0, help="video frames per simulated second (default 16)")
+    parser.add_argument("--no-video", action="store_true", help="skip the video (figures and table only)")
     add_config_args(parser)
     parser.set_defaults(func=run)
 
 
+def load_demo_policy(spec: str, config: ScoopConfig) -> tuple[Policy, str]:
+    """The policy to show, and its name as given; falls back to the heuristic while ``default`` is missing."""
+    try:
+        return load_policy(spec, config), spec
+    except PolicyError as error:
+        if spec != "default":
+            raise
+        # Fallback until the shipped policy lands in autoscoop.agents.loading; delete it then.
+        print(f"note: no shipped policy yet ({error}); showing the scripted baseline 'heuristic' instead")
+        return load_policy("heuristic", config), "heuristic"
+
+
 def run(args: argparse.Namespace) -> int:
+    if args.episodes < 1:
+        raise SystemExit(f"--episodes must be at least 1, got {args.episodes}")
+    if args.fps < 8:
+        raise SystemExit(f"--fps must be at least 8 frames per simulated second, got {args.fps}")
+    from autoscoop.report.data import load_episodes  # noqa: PLC0415 - matplotlib only when needed
+    from autoscoop.report.markdown import write_report  # noqa: PLC0415
+
+    started = time.perf_counter()
     config = config_from_args(args)
-    policy = load_policy(args.policy, config)
-    print(format_table(summarize(evaluate(policy, config, args.episodes), config, args.policy)))
+    policy, name = load_demo_policy(args.policy, config)
+    out: Path = args.out
+    records = out / "records"
+    for old in records.glob("episode_*.npz"):  # a previous demo's episodes would join this report
+        old.unlink()
+
+    results = evaluate(policy, config, args.episodes, seed=args.seed, records_dir=records,
+                       records_meta={"policy": name, "source": "demo"})
+    summary = summarize(results, config, name)
+    print(format_table(summary))
+    write_json(out / "summary.json", summary)
+    written = [out / "summary.json"]
+
+    if not args.no_video:
+        written += _film(policy, config, args.seed, args.fps, out, results[0])
+
+    report = write_report(
+        load_episodes([records]), out, title=f"autoscoop demo: {name} on the {config.pile.angle_deg:g}° pile",
+        intro=f"{args.episodes} episodes from seed {args.seed}; the video shows seed {args.seed}.\n\n"
+              + ("![the loader scooping](scoop.gif)\n" if not args.no_video else ""),
+        command=f"autoscoop report {records} --out {out}")
+    written += [report.markdown, *report.figures]
+    print("\n".join(f"wrote {path}" for path in written))
+    print(f"wrote {len(results)} episode records to {records}")
+    print(f"demo took {time.perf_counter() - started:.0f} s")
     return 0
+
+
+def _film(policy: Policy, config: ScoopConfig, seed: int, fps: float, out: Path, evaluated) -> list[Path]:
+    from autoscoop.render import render_episode  # noqa: PLC0415 - needs OpenGL
+    from autoscoop.report.video import write_gif, write_mp4  # noqa: PLC0415
+
+    capture, _, result = render_episode(policy, config, seed, fps=fps)
+    if (result.particles, result.steps, result.success) != (evaluated.particles, evaluated.steps, evaluated.success):
+        print(f"warning: the filmed episode (seed {seed}) differs from the evaluated one: {result} vs {evaluated}")
+    mp4 = write_mp4(capture.frames, out / "scoop.mp4", fps=capture.fps)
+    gif = write_gif(capture.frames, out / "scoop.gif", fps=capture.fps)
+    simulated = capture.times_s[-1] if capture.times_s else 0.0
+    print(f"video: {len(capture.frames)} frames over {simulated:.2f} simulated s ({capture.fps:g} frames/s)")
+    return [mp4, gif]

@@ -51,6 +51,10 @@ class ScoopEnv(gym.Env):
     | 8     | tilt    | tilt angle                               | rad  | sensor tilt_pos                   |
     | 9-11  | dv, dlift, dtilt | change since the previous step  | m/s, rad, rad |                          |
 
+    With ``env.mass_source = torque``, w comes instead from the lift and tilt torques (sensors
+    ``lift_torque``, ``tilt_torque``) averaged over the control period, plus ``env.load_cell_noise_nm``
+    of noise, through paper eq. 8 (:mod:`autoscoop.payload`, :class:`autoscoop.sim.load_cell.TorqueMassSensor`).
+
     ## Reward (paper eq. 5-7)
     ``P_t = 1 - tanh^2(d_end)`` while penetrating (tip within ``reward.delta_m`` of a particle centre),
     else ``1 - tanh^2(d_t)``; plus ``reward.c_w * w_t`` on the step the tip comes within

@@ -3,6 +3,12 @@
 :mod:`autoscoop.payload` does the statics (numpy only); this module reads the simulator the way the
 robot reads its sensors (potentiometer angles, actuator torques, IMU pitch), adds the load cell's
 noise, and hands them to the estimator. The environment uses it when ``env.mass_source = torque``.
+
+The robot's load cell samples far faster than the 4 Hz control loop, and a controller sees its
+reading averaged over the control period. The sensor does the same: it averages the readings of
+every physics step since the previous estimate (through :attr:`ScoopSim.substep_callback`). That
+matters: particles resting on the servo-held bucket rattle, and single readings swing by a kilogram
+or more around the right mean.
 """
 
 from __future__ import annotations
@@ -25,8 +31,8 @@ class LoadCellReading:
     Attributes:
         lift_rad: lift angle, rad.
         tilt_rad: tilt angle, rad.
-        lift_torque_nm: lift actuator torque (noise included), N*m.
-        tilt_torque_nm: tilt actuator torque (noise included), N*m.
+        lift_torque_nm: lift actuator torque, N*m.
+        tilt_torque_nm: tilt actuator torque, N*m.
         chassis_pitch_rad: chassis pitch (IMU), rad, positive nose down.
     """
 
@@ -36,6 +42,11 @@ class LoadCellReading:
     tilt_torque_nm: float
     chassis_pitch_rad: float
 
+    def as_array(self) -> np.ndarray:
+        """(5,) array in the field order."""
+        return np.array([self.lift_rad, self.tilt_rad, self.lift_torque_nm, self.tilt_torque_nm,
+                         self.chassis_pitch_rad])
+
 
 def chassis_pitch_rad(sim: ScoopSim) -> float:
     """The chassis pitch an IMU reports, rad; positive nose down (about +y, like the arm joints)."""
@@ -44,33 +55,70 @@ def chassis_pitch_rad(sim: ScoopSim) -> float:
     return float(math.atan2(-rotation[2, 0], rotation[2, 2]))
 
 
+def instant_reading(sim: ScoopSim) -> LoadCellReading:
+    """The noise-free readings at this physics step."""
+    return LoadCellReading(sim.lift_rad, sim.tilt_rad, sim.lift_torque_nm, sim.tilt_torque_nm, chassis_pitch_rad(sim))
+
+
+class ReadingWindow:
+    """Averages the readings of every physics step since it was last taken (attach it to a sim)."""
+
+    def __init__(self, sim: ScoopSim) -> None:
+        self.sim = sim
+        self._sum = np.zeros(5)
+        self._count = 0
+        sim.substep_callback = self._accumulate
+
+    def _accumulate(self) -> None:
+        self._sum += instant_reading(self.sim).as_array()
+        self._count += 1
+
+    def take(self) -> LoadCellReading:
+        """The mean since the last call (the instantaneous reading when no step was taken), then start over."""
+        if self._count == 0:
+            return instant_reading(self.sim)
+        mean = self._sum / self._count
+        self._sum[:] = 0.0
+        self._count = 0
+        return LoadCellReading(*(float(v) for v in mean))
+
+    def detach(self) -> None:
+        """Stop averaging (the sim steps in one C call again)."""
+        if self.sim.substep_callback == self._accumulate:
+            self.sim.substep_callback = None
+
+
 class TorqueMassSensor:
     """Payload mass from the simulated joint torques, as the robot would estimate it.
 
     Args:
         estimator: the calibrated estimator (eq. 8 by default).
-        noise_nm: standard deviation of the Gaussian noise added to each torque reading, N*m.
+        noise_nm: standard deviation of the Gaussian noise on each torque reading the controller
+            gets (one per control step, after averaging), N*m.
         rng: noise source.
         use_imu_pitch: correct for the chassis pitch (the robot has an IMU); else gravity along chassis -z.
+        average: average the readings over the physics steps since the previous estimate.
         clip_negative: report 0 instead of negative masses (noise on an empty bucket), as a
             particle count never goes below zero.
     """
 
     def __init__(self, estimator: PayloadEstimator | None = None, noise_nm: float = 0.0,
-                 rng: np.random.Generator | None = None, use_imu_pitch: bool = True,
+                 rng: np.random.Generator | None = None, use_imu_pitch: bool = True, average: bool = True,
                  clip_negative: bool = True) -> None:
-        if not (noise_nm >= 0.0 and math.isfinite(noise_nm)):
+        if not (math.isfinite(noise_nm) and noise_nm >= 0.0):
             raise ValueError(f"load-cell noise must be a finite number >= 0 N*m, got {noise_nm}")
         self.estimator = estimator or PayloadEstimator()
         self.noise_nm = float(noise_nm)
         self.rng = rng if rng is not None else np.random.default_rng()
         self.use_imu_pitch = use_imu_pitch
+        self.average = average
         self.clip_negative = clip_negative
+        self._window: ReadingWindow | None = None
 
     @classmethod
     def for_env(cls, config: ScoopConfig, rng: np.random.Generator,
                 calibration: PayloadCalibration | str | Path | None = None) -> "TorqueMassSensor":
-        """The sensor the environment uses: eq. 8, noise ``env.load_cell_noise_nm``.
+        """The sensor the environment uses: eq. 8, noise ``env.load_cell_noise_nm``, control-period averages.
 
         The noise comes from a child of ``rng`` (one draw), so episodes with the same seed lay out the
         same pile whichever mass source is used.
@@ -87,11 +135,17 @@ class TorqueMassSensor:
         return cls(PayloadEstimator(calibration or PayloadCalibration()), config.env.load_cell_noise_nm, child)
 
     def read(self, sim: ScoopSim) -> LoadCellReading:
-        """The readings the estimate uses, torque noise included."""
+        """The readings the estimate uses, noise included; the first call attaches the averaging window."""
+        if self.average:
+            if self._window is None or self._window.sim is not sim or sim.substep_callback != self._window._accumulate:
+                self._window = ReadingWindow(sim)
+            clean = self._window.take()
+        else:
+            clean = instant_reading(sim)
         noise = self.rng.normal(0.0, self.noise_nm, 2) if self.noise_nm > 0 else np.zeros(2)
-        return LoadCellReading(sim.lift_rad, sim.tilt_rad, sim.lift_torque_nm + float(noise[0]),
-                               sim.tilt_torque_nm + float(noise[1]),
-                               chassis_pitch_rad(sim) if self.use_imu_pitch else 0.0)
+        return LoadCellReading(clean.lift_rad, clean.tilt_rad, clean.lift_torque_nm + float(noise[0]),
+                               clean.tilt_torque_nm + float(noise[1]),
+                               clean.chassis_pitch_rad if self.use_imu_pitch else 0.0)
 
     def estimate(self, sim: ScoopSim) -> float:
         """Payload mass now, kg."""

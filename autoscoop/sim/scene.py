@@ -7,6 +7,7 @@ This module owns the simulator; the task (state, reward, episode) lives in ``aut
 from __future__ import annotations
 
 from importlib import resources
+from typing import Callable
 
 import mujoco
 import numpy as np
@@ -123,6 +124,8 @@ class ScoopSim:
         self._tilt_act_state = m.actuator_actadr[self._tilt_act]
         self.time_origin_s = 0.0
         self._settled: dict[int, mujoco.MjData] = {}
+        self.substep_callback: Callable[[], None] | None = None
+        """Called after every physics step when set (a load cell averaging its readings); steps then run one by one."""
 
     # ---------------------------------------------------------------- reset and stepping
     def reset(self, rng: np.random.Generator | None = None) -> None:
@@ -179,8 +182,13 @@ class ScoopSim:
         d.ctrl[self._tilt_act] = tilt_rate_radps
 
     def step(self, n_steps: int) -> None:
-        """Advance the physics by ``n_steps`` steps (in C, one call)."""
-        mujoco.mj_step(self.model, self.data, nstep=n_steps)
+        """Advance the physics by ``n_steps`` steps (in C, one call, unless :attr:`substep_callback` is set)."""
+        if self.substep_callback is None:
+            mujoco.mj_step(self.model, self.data, nstep=n_steps)
+            return
+        for _ in range(n_steps):
+            mujoco.mj_step(self.model, self.data)
+            self.substep_callback()
 
     def instability_count(self) -> int:
         """How many times MuJoCo has flagged an instability (bad acceleration, full buffers) since reset."""

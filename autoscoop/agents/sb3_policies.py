@@ -1,0 +1,108 @@
+"""The paper's actor-critic as a Stable-Baselines3 policy for DDPG and TD3 (a policy subclass, not a fork)."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import gymnasium as gym
+import torch
+from stable_baselines3.common.policies import ContinuousCritic
+from stable_baselines3.common.torch_layers import BaseFeaturesExtractor
+from stable_baselines3.td3.policies import Actor, TD3Policy
+from torch import nn
+
+from autoscoop.agents.networks import PAPER_LAYERS, PaperQNetwork, StateNormalizer, paper_mlp
+
+
+class NormalizedState(BaseFeaturesExtractor):
+    """Features = the state under the fixed normalisation of :mod:`autoscoop.state`."""
+
+    def __init__(self, observation_space: gym.spaces.Box) -> None:
+        super().__init__(observation_space, features_dim=int(observation_space.shape[0]))
+        self.normalizer = StateNormalizer()
+
+    def forward(self, observations: torch.Tensor) -> torch.Tensor:
+        return self.normalizer(observations)
+
+
+class PaperActorSB3(Actor):
+    """SB3 actor whose mu is the paper's 100-80-60 network with layer normalisation and a tanh output."""
+
+    def __init__(self, *args: Any, **kwargs: Any) -> None:
+        super().__init__(*args, **kwargs)
+        action_dim = int(self.action_space.shape[0])
+        self.mu = nn.Sequential(paper_mlp(self.features_dim, self.net_arch), nn.Linear(self.net_arch[-1], action_dim),
+                                nn.Tanh())
+
+
+class PaperCriticSB3(ContinuousCritic):
+    """SB3 critic(s) with the paper's merge: the action joins after the critic's first layer."""
+
+    def __init__(self, *args: Any, net_arch: list[int], **kwargs: Any) -> None:
+        super().__init__(*args, net_arch=net_arch, **kwargs)
+        action_dim = int(self.action_space.shape[0])
+        features_dim = int(self.features_extractor.features_dim)
+        for idx in range(self.n_critics):
+            delattr(self, f"qf{idx}")
+        self.q_networks = []
+        for idx in range(self.n_critics):
+            q_net = PaperQNetwork(features_dim, action_dim, net_arch)
+            self.add_module(f"qf{idx}", q_net)
+            self.q_networks.append(q_net)
+
+    def forward(self, obs: torch.Tensor, actions: torch.Tensor) -> tuple[torch.Tensor, ...]:
+        with torch.set_grad_enabled(not self.share_features_extractor):
+            features = self.extract_features(obs, self.features_extractor)
+        return tuple(q_net(features, actions) for q_net in self.q_networks)
+
+    def q1_forward(self, obs: torch.Tensor, actions: torch.Tensor) -> torch.Tensor:
+        with torch.no_grad():
+            features = self.extract_features(obs, self.features_extractor)
+        return self.q_networks[0](features, actions)
+
+
+class PaperPolicy(TD3Policy):
+    """TD3Policy with the paper's actor and critic (used by DDPG and TD3)."""
+
+    def __init__(self, *args: Any, **kwargs: Any) -> None:
+        kwargs.setdefault("net_arch", list(PAPER_LAYERS))
+        kwargs.setdefault("features_extractor_class", NormalizedState)
+        kwargs.setdefault("activation_fn", nn.ReLU)
+        super().__init__(*args, **kwargs)
+
+    def make_actor(self, features_extractor: BaseFeaturesExtractor | None = None) -> PaperActorSB3:
+        actor_kwargs = self._update_features_extractor(self.actor_kwargs, features_extractor)
+        return PaperActorSB3(**actor_kwargs).to(self.device)
+
+    def make_critic(self, features_extractor: BaseFeaturesExtractor | None = None) -> PaperCriticSB3:
+        critic_kwargs = self._update_features_extractor(self.critic_kwargs, features_extractor)
+        return PaperCriticSB3(**critic_kwargs).to(self.device)
+
+
+from stable_baselines3.sac.policies import Actor as SACActor  # noqa: E402
+from stable_baselines3.sac.policies import SACPolicy  # noqa: E402
+
+
+class PaperSACActor(SACActor):
+    """SAC's squashed-Gaussian actor with the paper's hidden layers (its mean action has the PaperActor's shape)."""
+
+    def __init__(self, *args: Any, **kwargs: Any) -> None:
+        super().__init__(*args, **kwargs)
+        self.latent_pi = paper_mlp(self.features_dim, self.net_arch)
+
+
+class PaperSACPolicy(SACPolicy):
+    """SACPolicy with the paper's hidden layers for the actor and the paper's critics."""
+
+    def __init__(self, *args: Any, **kwargs: Any) -> None:
+        kwargs.setdefault("net_arch", list(PAPER_LAYERS))
+        kwargs.setdefault("features_extractor_class", NormalizedState)
+        super().__init__(*args, **kwargs)
+
+    def make_actor(self, features_extractor: BaseFeaturesExtractor | None = None) -> PaperSACActor:
+        actor_kwargs = self._update_features_extractor(self.actor_kwargs, features_extractor)
+        return PaperSACActor(**actor_kwargs).to(self.device)
+
+    def make_critic(self, features_extractor: BaseFeaturesExtractor | None = None) -> PaperCriticSB3:
+        critic_kwargs = self._update_features_extractor(self.critic_kwargs, features_extractor)
+        return PaperCriticSB3(**critic_kwargs).to(self.device)

@@ -1,0 +1,42 @@
+"""``autoscoop train``: train the paper's DDPG controller (or TD3, SAC, PPO) into a run directory."""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+from autoscoop.commands import add_config_args
+from autoscoop.config import load_yaml, parse_set_args
+
+
+def register(subparsers: argparse._SubParsersAction) -> None:
+    parser = subparsers.add_parser("train", help="train a controller", description=__doc__)
+    parser.add_argument("--algo", default="ddpg", choices=["ddpg", "td3", "sac", "ppo"],
+                        help="algorithm (default ddpg, the paper's); settings in autoscoop/hyperparams/ALGO.yaml")
+    parser.add_argument("--episodes", type=int, default=800, help="training episodes (default 800, as in the paper)")
+    parser.add_argument("--seed", type=int, default=0, help="random seed")
+    parser.add_argument("--n-envs", type=int, default=1, help="parallel simulators in subprocesses (default 1)")
+    parser.add_argument("--checkpoint-every", type=int, default=50, help="episodes between checkpoints (default 50)")
+    parser.add_argument("--out", type=Path, help="run directory (default runs/ALGO-sSEED-TIME)")
+    parser.add_argument("--resume", type=Path, metavar="RUN_DIR", help="continue an interrupted run")
+    parser.add_argument("--no-progress", action="store_true", help="no progress bar")
+    add_config_args(parser)
+    parser.set_defaults(func=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    from autoscoop.train import TrainArgs, resume, train  # noqa: PLC0415 - torch is slow to import
+
+    if args.resume:
+        run_dir = resume(args.resume, progress=not args.no_progress)
+    else:
+        if args.episodes < 1 or args.n_envs < 1 or args.checkpoint_every < 1:
+            raise ValueError("--episodes, --n-envs and --checkpoint-every must be at least 1")
+        overrides = load_yaml(args.config).to_dict() if args.config else {}
+        flat = {f"{section}.{key}": value for section, values in overrides.items() for key, value in values.items()}
+        flat.update(parse_set_args(args.overrides))
+        run_dir = train(TrainArgs(algo=args.algo, episodes=args.episodes, seed=args.seed, n_envs=args.n_envs,
+                                  overrides=flat, out=args.out, checkpoint_every=args.checkpoint_every,
+                                  progress=not args.no_progress))
+    print(f"run directory: {run_dir}")
+    return 0

@@ -1,0 +1,369 @@
+"""The controller node's logic, free of ROS: readings in, clamped commands out, one scoop at a time.
+
+A front end (``autoscoop.deploy.ros1.controller_node``, or a test) feeds it each message as plain
+numbers with the time it arrived, and calls :meth:`ControllerCore.update` whenever
+:meth:`ControllerCore.next_wakeup` comes or a message may have changed things; every
+:class:`~autoscoop.deploy.safety.Command` it returns is to be published at once.
+
+Per control period (``control.control_period_s``, 0.25 s) while a scoop runs and every input is
+healthy, it builds the 12-number state with :func:`autoscoop.state.build_state` (mass from the bucket
+torque through the payload estimator), asks the policy for an action, moves the targets with
+:func:`autoscoop.state.advance_targets` (the environment's scaling) and clamps the command to the
+robot's limits. Otherwise:
+
+| situation                                  | speed | arm                                  |
+|--------------------------------------------|-------|--------------------------------------|
+| no scoop running (``idle``)                | 0     | no command (controllers hold)        |
+| an input stale, missing or bad (``fault``) | 0     | the last command, held               |
+| ``estop`` true (``estop``)                 | 0     | the last command, held               |
+
+A fault or an estop is published the moment it is seen (the watchdog's expiry is a wake-up time),
+not at the next control period; the scoop resumes when every input is healthy again.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections import deque
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Callable, Protocol, Sequence
+
+import numpy as np
+
+from autoscoop import __version__, kinematics
+from autoscoop.agents.base import Policy
+from autoscoop.config import ScoopConfig
+from autoscoop.deploy.robot_config import RobotNodeConfig
+from autoscoop.deploy.safety import Command, CommandLimiter, InputWatchdog
+from autoscoop.records import EpisodeRecord
+from autoscoop.state import CommandLimits, Measurements, advance_targets, build_state, validate_action
+
+SENSOR_INPUTS = ("joint_states", "odom", "pile_range", "bucket_torque")
+"""Inputs the watchdog requires fresh (``estop`` too when ``estop.required``)."""
+WAKE_SLACK_S = 1e-4
+"""A wake-up this close before a deadline counts as on time (timers fire a little early or late)."""
+
+
+class MassFromTorque(Protocol):
+    """Payload mass (kg) from the bucket joint's torque (N*m) at the measured joint angles (rad)."""
+
+    def __call__(self, tilt_torque_nm: float, lift_rad: float, tilt_rad: float) -> float: ...
+
+
+class PayloadMass:
+    """The node's mass input: :class:`autoscoop.payload.PayloadEstimator` with eq. 4 (bucket torque alone).
+
+    A negative estimate (noise on an empty bucket) reads 0; where eq. 4 is undefined (the payload's
+    centre right above the joint) the last estimate is kept.
+
+    Args:
+        calibration: payload calibration YAML (``autoscoop payload calibrate``); empty: the nominal one.
+    """
+
+    def __init__(self, calibration: str | Path = "") -> None:
+        from autoscoop.payload import PayloadCalibration, PayloadEstimator  # noqa: PLC0415 - numpy only
+
+        cal = PayloadCalibration.load(calibration) if calibration else PayloadCalibration()
+        self.estimator = PayloadEstimator(cal, method="eq4")
+        self._last = 0.0
+
+    def __call__(self, tilt_torque_nm: float, lift_rad: float, tilt_rad: float) -> float:
+        mass = self.estimator.mass_kg(lift_rad, tilt_rad, math.nan, tilt_torque_nm)
+        if math.isfinite(mass):
+            self._last = max(mass, 0.0)
+        return self._last
+
+
+@dataclass
+class _Episode:
+    index: int
+    start: float
+    record: EpisodeRecord
+    targets: np.ndarray
+    pending_action: np.ndarray | None = None
+    previous: Measurements | None = None
+    faults: int = 0
+    mass_kg: float = 0.0
+
+
+class ControllerCore:
+    """The node's logic; see the module docstring.
+
+    Args:
+        config: the robot's configuration (validated).
+        policy: the controller (``Policy``: ``reset()``, ``act(state)``).
+        task: the scene config the policy was made for (its action scaling and speed limit).
+        mass_from_torque: the payload estimator; defaults to :class:`PayloadMass` with the config's calibration.
+        record_dir: write one episode record per scoop here (``None``: no records).
+        log: ``log(level, text)`` with level ``info``, ``warn`` or ``error``.
+        policy_name: the policy as given on the command line, for records.
+    """
+
+    def __init__(self, config: RobotNodeConfig, policy: Policy, task: ScoopConfig | None = None,
+                 mass_from_torque: MassFromTorque | None = None, record_dir: str | Path | None = None,
+                 log: Callable[[str, str], None] | None = None, policy_name: str | None = None) -> None:
+        self.config = config
+        self.policy = policy
+        self.policy_name = policy_name or getattr(policy, "name", "policy")
+        self.task = task or ScoopConfig()
+        self.task_limits = CommandLimits(max_speed_mps=self.task.robot.max_speed_mps)
+        self.period_s = config.control.control_period_s
+        self.limiter = CommandLimiter(config.limits, self.period_s)
+        inputs = SENSOR_INPUTS + (("estop",) if config.estop.required else ())
+        self.watchdog = InputWatchdog(inputs, config.control.input_timeout_s)
+        self.mass_from_torque = mass_from_torque or PayloadMass(config.payload.calibration)
+        self.record_dir = None if record_dir is None else Path(record_dir)
+        self.log = log or (lambda level, text: None)
+        margin = config.sensors.joint_margin_rad
+        self._joint_bounds = {"lift": (kinematics.LIFT_RANGE_RAD[0] - margin, kinematics.LIFT_RANGE_RAD[1] + margin),
+                              "tilt": (kinematics.TILT_RANGE_RAD[0] - margin, kinematics.TILT_RANGE_RAD[1] + margin)}
+        self.lift_rad = math.nan
+        self.tilt_rad = math.nan
+        self.speed_mps = math.nan
+        self.range_m = math.nan
+        self.torque_nm = math.nan
+        self.estop_engaged = False
+        self.episode: _Episode | None = None
+        self.episodes_done = 0
+        self.saved: list[Path] = []
+        self.mode = "idle"
+        self.reason = ""
+        self.last_command: np.ndarray | None = None
+        """(speed, lift, tilt) last published; lift and tilt NaN until an arm command is published."""
+        self._start_requested = bool(config.control.auto_start)
+        self._next_control = -math.inf
+        self.delays: dict[str, deque] = {}
+
+    # ---------------------------------------------------------------- inputs (each with its arrival time)
+    def joint_states(self, names: Sequence[str], positions: Sequence[float], now: float) -> None:
+        """``sensor_msgs/JointState``: names and positions (raw readings where a potentiometer is calibrated)."""
+        values = {}
+        for joint in ("lift", "tilt"):
+            name = getattr(self.config.sensors, f"{joint}_joint")
+            try:
+                index = list(names).index(name)
+                reading = float(positions[index])
+            except (ValueError, IndexError, TypeError):
+                self.watchdog.invalid("joint_states", f"no position for joint {name!r}")
+                return
+            pot = self.config.potentiometer(joint)
+            angle = pot.to_rad(reading) if (pot is not None and math.isfinite(reading)) else reading
+            low, high = self._joint_bounds[joint]
+            if not math.isfinite(angle):
+                self.watchdog.invalid("joint_states", f"{joint} reading is {reading}")
+                return
+            if not low <= angle <= high:
+                self.watchdog.invalid("joint_states", f"{joint} = {angle:.3f} rad is outside [{low:.3f}, {high:.3f}]")
+                return
+            values[joint] = angle
+        self.lift_rad, self.tilt_rad = values["lift"], values["tilt"]
+        self.watchdog.valid("joint_states", now)
+
+    def odometry(self, speed_mps: float, now: float) -> None:
+        """``nav_msgs/Odometry``: forward speed, m/s."""
+        limit = self.config.sensors.max_speed_reading_mps
+        if not math.isfinite(speed_mps) or abs(speed_mps) > limit:
+            self.watchdog.invalid("odom", f"speed {speed_mps} m/s is not within +-{limit:g} m/s")
+            return
+        self.speed_mps = float(speed_mps)
+        self.watchdog.valid("odom", now)
+
+    def pile_range(self, range_m: float, now: float, min_range_m: float = 0.0, max_range_m: float = math.inf) -> None:
+        """``sensor_msgs/Range``: distance from the tip to the pile, m; outside [min, max] is no reading (REP 117)."""
+        low = min_range_m if math.isfinite(min_range_m) else 0.0
+        high = max_range_m if (math.isfinite(max_range_m) and max_range_m > low) else math.inf
+        if not math.isfinite(range_m) or not (max(low, 0.0) <= range_m <= high):
+            self.watchdog.invalid("pile_range", f"range {range_m} m is not within [{max(low, 0.0):g}, {high:g}] m")
+            return
+        self.range_m = float(range_m)
+        self.watchdog.valid("pile_range", now)
+
+    def bucket_torque(self, torque_nm: float, now: float) -> None:
+        """``std_msgs/Float64``: torque at the tilt joint, N*m."""
+        limit = self.config.sensors.max_torque_nm
+        if not math.isfinite(torque_nm) or abs(torque_nm) > limit:
+            self.watchdog.invalid("bucket_torque", f"torque {torque_nm} N*m is not within +-{limit:g} N*m")
+            return
+        self.torque_nm = float(torque_nm)
+        self.watchdog.valid("bucket_torque", now)
+
+    def estop(self, engaged: bool, now: float) -> None:
+        """``std_msgs/Bool``: true stops the robot until a false arrives."""
+        self.estop_engaged = bool(engaged)
+        if "estop" in self.watchdog.names:
+            self.watchdog.valid("estop", now)
+
+    def scoop(self, start: bool, now: float) -> None:
+        """``std_msgs/Bool``: true starts a scoop (ending one that runs), false ends the running one."""
+        if self.episode is not None:
+            self._end_episode("restarted" if start else "stopped by the scoop topic", now)
+        self._start_requested = bool(start)
+        if start:
+            self._next_control = now
+
+    def transport_delay(self, name: str, delay_s: float) -> None:
+        """Note how long a stamped message took from its stamp to its arrival, s (for reports)."""
+        self.delays.setdefault(name, deque(maxlen=100_000)).append(float(delay_s))
+
+    # ---------------------------------------------------------------- the loop
+    def next_wakeup(self) -> float:
+        """When :meth:`update` must run next: the next control period, an input going stale, the scoop's end."""
+        times = [self._next_control, self.watchdog.next_expiry() + WAKE_SLACK_S]
+        if self.episode is not None:
+            times.append(self.episode.start + self.config.control.episode_s)
+        return min(times)
+
+    def update(self, now: float) -> Command | None:
+        """Advance to ``now``; the command to publish, or ``None`` when nothing needs publishing now."""
+        control = now >= self._next_control - WAKE_SLACK_S
+        if control:  # keep the period's phase; skip periods missed while the machine was busy
+            following = self._next_control + self.period_s if math.isfinite(self._next_control) else now + self.period_s
+            while following <= now + WAKE_SLACK_S:
+                following += self.period_s
+            self._next_control = following
+        if self.episode is not None and now - self.episode.start >= self.config.control.episode_s - WAKE_SLACK_S:
+            self._end_episode("time limit", now)
+            control = True
+        problems = self.watchdog.problems(now)
+        if self.estop_engaged:
+            mode, reason = "estop", "estop engaged"
+        elif problems:
+            mode, reason = "fault", "; ".join(problems)
+        else:
+            mode, reason = ("running" if (self.episode is not None or self._start_requested) else "idle"), ""
+        changed = (mode, reason) != (self.mode, self.reason)
+        if changed:
+            self._log_transition(mode, reason)
+        self.mode, self.reason = mode, reason
+        if mode == "running":
+            if self._start_requested and self.episode is None:
+                self._start_episode(now)
+                control = True
+            if not control:
+                return None
+            return self._publish(self._policy_step(now))
+        if not (control or changed):
+            return None
+        if self.episode is not None:
+            self.episode.faults += int(changed)
+            self.episode.previous = None  # the next state's changes restart from zero
+        return self._publish(self._stopped(mode, reason))
+
+    # ---------------------------------------------------------------- internals
+    def _measurements(self) -> Measurements:
+        mass = float(self.mass_from_torque(self.torque_nm, self.lift_rad, self.tilt_rad))
+        return Measurements(mass_kg=mass if math.isfinite(mass) else 0.0, pile_distance_m=self.range_m,
+                            speed_mps=self.speed_mps, lift_rad=self.lift_rad, tilt_rad=self.tilt_rad)
+
+    def _stopped(self, mode: str, reason: str) -> Command:
+        arm = None
+        if self.episode is not None and self.last_command is not None:
+            arm = self.limiter.hold(self.last_command[1:])
+        if arm is None:
+            return Command(0.0, None, None, mode, reason)
+        return Command(0.0, float(arm[0]), float(arm[1]), mode, reason)
+
+    def _policy_step(self, now: float) -> Command:
+        episode = self.episode
+        measured = self._measurements()
+        state = build_state(measured, episode.previous, self.config.payload.rated_load_kg)
+        try:
+            action = validate_action(self.policy.act(state))
+        except Exception as error:  # a broken policy stops the robot; it never crashes the node
+            self._log_transition("fault", f"policy error: {error}")
+            episode.previous = None
+            return self._stopped("fault", f"policy error: {error}")
+        if episode.pending_action is not None:
+            self._append_step(now, state, episode.pending_action)
+        else:
+            episode.record.meta["start"] = {"state": state.astype(float).round(6).tolist(), "lift_rad": self.lift_rad,
+                                            "tilt_rad": self.tilt_rad, "tip_world_m": [math.nan] * 3}
+        episode.previous = measured
+        episode.mass_kg = measured.mass_kg
+        episode.pending_action = action
+        episode.targets = advance_targets(episode.targets, action, self.task_limits)
+        last = self.last_command
+        if last is not None and not np.all(np.isfinite(last[1:])):
+            last = np.array([last[0], self.lift_rad, self.tilt_rad])
+        out = self.limiter.clamp(episode.targets, last)
+        return Command(float(out[0]), float(out[1]), float(out[2]), "running")
+
+    def _publish(self, command: Command) -> Command:
+        if not self.limiter.contains(command):  # last guard: never let a bad number out
+            self.log("error", f"refused an out-of-limit command {command}; stopping")
+            command = Command(0.0, None, None, "fault", "internal: out-of-limit command refused")
+        lift = math.nan if command.lift_rad is None else command.lift_rad
+        tilt = math.nan if command.tilt_rad is None else command.tilt_rad
+        if self.last_command is not None and command.lift_rad is None:
+            lift, tilt = self.last_command[1], self.last_command[2]
+        self.last_command = np.array([command.speed_mps, lift, tilt])
+        return command
+
+    def _start_episode(self, now: float) -> None:
+        self._start_requested = False
+        self.policy.reset()
+        targets = np.clip([0.0, self.lift_rad, self.tilt_rad], self.task_limits.low, self.task_limits.high)
+        index = self.episodes_done
+        meta = {
+            "source": "ros controller", "policy": self.policy_name, "autoscoop_version": __version__,
+            "episode": index, "wall_time_start": time.time(),
+            "pile": {"angle_deg": self.task.pile.angle_deg, "n_particles": self.task.pile.n_particles,
+                     "radius_m": self.task.pile.radius_m},
+            "terminal_point_m": [self.task.reward.terminal_dx_m, self.task.reward.terminal_z_m],
+            "control_period_s": self.period_s, "time_limit_s": self.config.control.episode_s,
+            "robot_config": self.config.to_dict(), "config": self.task.to_dict(),
+        }
+        self.episode = _Episode(index=index, start=now, record=EpisodeRecord(meta=meta), targets=targets)
+        self.last_command = np.array([0.0 if self.last_command is None else self.last_command[0],
+                                      self.lift_rad, self.tilt_rad])
+        self.log("info", f"scoop {index} started ({self.policy_name})")
+
+    def _append_step(self, now: float, state: np.ndarray, action: np.ndarray) -> None:
+        nan = math.nan
+        self.episode.record.append(
+            time_s=now - self.episode.start, state=state.astype(float), action=action, reward=nan,
+            reward_progress=nan, reward_mass=nan, particles_in_bucket=nan, mass_in_bucket_kg=nan,
+            lift_rad=self.lift_rad, tilt_rad=self.tilt_rad, lift_torque_nm=nan, tilt_torque_nm=self.torque_nm,
+            tip_world_m=[nan, nan, nan], penetrating=nan)
+
+    def _end_episode(self, why: str, now: float) -> None:
+        episode, self.episode = self.episode, None
+        self.episodes_done += 1
+        rated = self.config.payload.rated_load_kg
+        episode.record.meta["outcome"] = {
+            "fill_factor": episode.mass_kg / rated, "mass_kg": episode.mass_kg, "particles": math.nan,
+            "success": False, "cycle_time_s": None, "spilled": math.nan, "physics_error": False,
+            "steps": len(episode.record), "episode_return": math.nan, "ended": why, "faults": episode.faults,
+            "duration_s": now - episode.start,
+            "note": "robot's own view: mass is the payload estimate; success and spillage are not measured",
+        }
+        episode.record.meta["transport_delay_s"] = self.delay_summary()
+        self.log("info", f"scoop {episode.index} ended ({why}) after {now - episode.start:.2f} s, "
+                         f"{len(episode.record)} steps, payload estimate {episode.mass_kg:.2f} kg")
+        if self.record_dir is not None and len(episode.record) > 0:
+            path = episode.record.save(self.record_dir / f"robot_episode_{episode.index:05d}.npz")
+            self.saved.append(path)
+            self.log("info", f"wrote {path}")
+
+    def _log_transition(self, mode: str, reason: str) -> None:
+        if mode in ("fault", "estop"):
+            self.log("warn", f"stopping (zero velocity, arm held): {reason}")
+        elif self.mode in ("fault", "estop"):
+            self.log("info", f"inputs healthy again: {mode}")
+
+    def delay_summary(self) -> dict[str, Any]:
+        """Median, 99th percentile and max of each stamped input's transport delay, s."""
+        out = {}
+        for name, values in self.delays.items():
+            a = np.asarray(values)
+            if len(a):
+                out[name] = {"median": float(np.median(a)), "p99": float(np.percentile(a, 99)),
+                             "max": float(a.max()), "n": int(len(a))}
+        return out
+
+    def close(self, now: float) -> None:
+        """End a running scoop (its record is written)."""
+        if self.episode is not None:
+            self._end_episode("node shut down", now)

@@ -1,0 +1,146 @@
+"""The node's safety layer, free of ROS: an input watchdog and a command limiter.
+
+Both are plain classes with no clock of their own: every call takes ``now`` (seconds on a monotonic
+clock), so tests drive them with made-up times. Neither is a substitute for the robot's hardware
+emergency stop: they only decide what the node publishes.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from autoscoop.deploy.robot_config import LimitsSection
+
+
+class InputWatchdog:
+    """Tracks when each input last brought a valid reading, and which are bad.
+
+    An input is *healthy* when its latest message was valid and arrived at most ``timeout_s`` ago.
+    A message that fails the checks (non-finite, out of range, a missing joint) makes its input bad
+    at once, until a valid one arrives.
+
+    Args:
+        names: the inputs watched, e.g. ``("joint_states", "odom", ...)``.
+        timeout_s: largest allowed age of an input, s.
+    """
+
+    def __init__(self, names: tuple[str, ...] | list[str], timeout_s: float) -> None:
+        if not (timeout_s > 0 and math.isfinite(timeout_s)):
+            raise ValueError(f"watchdog timeout must be a positive number of seconds, got {timeout_s}")
+        self.names = tuple(names)
+        self.timeout_s = float(timeout_s)
+        self._last_valid: dict[str, float | None] = {name: None for name in self.names}
+        self._bad: dict[str, str] = {}
+
+    def valid(self, name: str, now: float) -> None:
+        """A valid reading of ``name`` arrived at ``now``."""
+        self._last_valid[name] = now
+        self._bad.pop(name, None)
+
+    def invalid(self, name: str, why: str) -> None:
+        """A reading of ``name`` failed its checks (``why`` says how); the input is bad until the next valid one."""
+        self._bad[name] = why
+
+    def problems(self, now: float) -> list[str]:
+        """Why the inputs are not all healthy at ``now``; empty when they are."""
+        out = []
+        for name in self.names:
+            last = self._last_valid[name]
+            if name in self._bad:
+                out.append(f"{name}: {self._bad[name]}")
+            elif last is None:
+                out.append(f"{name}: no message yet")
+            elif now - last > self.timeout_s:
+                out.append(f"{name}: stale ({now - last:.3f} s old, timeout {self.timeout_s:g} s)")
+        return out
+
+    def next_expiry(self) -> float:
+        """The earliest time a healthy input goes stale (``inf`` when none can)."""
+        times = [last + self.timeout_s for name, last in self._last_valid.items()
+                 if last is not None and name not in self._bad]
+        return min(times, default=math.inf)
+
+    def age(self, name: str, now: float) -> float:
+        """Seconds since ``name``'s last valid reading (``inf`` if none)."""
+        last = self._last_valid[name]
+        return math.inf if last is None else now - last
+
+
+@dataclass(frozen=True)
+class Command:
+    """What the node publishes at one instant.
+
+    Attributes:
+        speed_mps: forward speed for ``cmd_vel``, m/s.
+        lift_rad: lift position command, rad; ``None`` publishes no arm command (the joint
+            controllers keep their last setpoint).
+        tilt_rad: tilt position command, rad; ``None`` as for lift.
+        mode: ``idle`` (no scoop running), ``running``, ``fault`` (watchdog) or ``estop``.
+        reason: why the robot is stopped, or ``""``.
+    """
+
+    speed_mps: float
+    lift_rad: float | None
+    tilt_rad: float | None
+    mode: str
+    reason: str = ""
+
+    def as_array(self) -> np.ndarray:
+        """(speed, lift, tilt), NaN where no arm command is published."""
+        return np.array([self.speed_mps, np.nan if self.lift_rad is None else self.lift_rad,
+                         np.nan if self.tilt_rad is None else self.tilt_rad])
+
+
+class CommandLimiter:
+    """Clamps commands to the robot's limits: speed, joint ranges and rate of change.
+
+    Args:
+        limits: the robot's ``limits`` section.
+        period_s: time between two commands of the control loop, s (the rate limits' step).
+    """
+
+    def __init__(self, limits: LimitsSection, period_s: float) -> None:
+        self.limits = limits
+        self.low = np.array([-limits.max_speed_mps, limits.lift_min_rad, limits.tilt_min_rad])
+        self.high = np.array([limits.max_speed_mps, limits.lift_max_rad, limits.tilt_max_rad])
+        self.step = np.array([limits.max_accel_mps2, limits.lift_rate_radps, limits.tilt_rate_radps]) * period_s
+
+    def clamp(self, desired: np.ndarray, last: np.ndarray | None) -> np.ndarray:
+        """(speed, lift, tilt) within the limits and at most one step from ``last``.
+
+        Args:
+            desired: (3,) wished-for (speed m/s, lift rad, tilt rad); non-finite entries keep ``last``
+                (or the nearest limit to zero when there is no ``last``).
+            last: (3,) the previous published command, or ``None``.
+
+        Returns:
+            (3,) finite command within the limits.
+        """
+        wish = np.asarray(desired, dtype=float).copy()
+        before = None if last is None else np.asarray(last, dtype=float)
+        fallback = np.clip(np.zeros(3), self.low, self.high) if before is None else before
+        bad = ~np.isfinite(wish)
+        wish[bad] = fallback[bad]
+        out = np.clip(wish, self.low, self.high)
+        if before is not None and np.all(np.isfinite(before)):
+            out = np.clip(out, before - self.step, before + self.step)
+            out = np.clip(out, self.low, self.high)
+        return out
+
+    def hold(self, arm: np.ndarray | None) -> np.ndarray | None:
+        """The arm command (lift, tilt) that holds the arm where it was last commanded, inside the limits."""
+        if arm is None or not np.all(np.isfinite(arm)):
+            return None
+        return np.clip(np.asarray(arm, dtype=float), self.low[1:], self.high[1:])
+
+    def contains(self, command: Command) -> bool:
+        """Whether a command is finite and inside the limits (a check for tests and the node's last guard)."""
+        values = command.as_array()
+        finite = np.isfinite(values)
+        if not finite[0] or (command.lift_rad is None) != (command.tilt_rad is None):
+            return False
+        return bool(np.all(values[finite] >= self.low[finite] - 1e-12) and
+                    np.all(values[finite] <= self.high[finite] + 1e-12))

@@ -1,0 +1,331 @@
+"""Train a scooping controller with Stable-Baselines3: config -> run directory.
+
+A run directory holds everything needed to repeat and to use the run:
+
+| file | what |
+|---|---|
+| run.json | algorithm, seed, episodes, package version, command, wall time, the policy zip's SHA-256 |
+| config.yaml, hyperparams.yaml | the environment config and the algorithm's settings |
+| episodes.csv | one row per training episode: reward, fill factor, cycle time, success, steps |
+| tb/ | TensorBoard logs |
+| checkpoint/ | model and replay buffer every ``checkpoint_every`` episodes (for ``--resume``) |
+| policy.zip | the final SB3 model (pickle inside: load only what you trust) |
+| policy.safetensors, policy.json | the final actor in the safe format, with its hash |
+| learning_curve.png | reward, fill factor and cycle time against episode (the paper's Fig. 8) |
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import math
+import os
+import shutil
+import sys
+import time
+from dataclasses import asdict, dataclass, field
+from functools import partial
+from importlib import resources
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import torch
+import yaml
+from stable_baselines3 import DDPG, PPO, SAC, TD3
+from stable_baselines3.common.callbacks import BaseCallback
+from stable_baselines3.common.noise import NormalActionNoise, OrnsteinUhlenbeckActionNoise, VectorizedActionNoise
+from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv
+from tqdm import tqdm
+
+from autoscoop import __version__
+from autoscoop.agents.policy_files import actor_from_sb3, save_actor, sha256_of
+from autoscoop.config import ScoopConfig, from_dict, save_yaml
+from autoscoop.envs.scoop import make_scoop_env
+
+ALGORITHMS = {"ddpg": DDPG, "td3": TD3, "sac": SAC, "ppo": PPO}
+CSV_FIELDS = ["episode", "reward", "fill_factor", "cycle_time_s", "success", "steps", "spilled", "physics_error",
+              "wall_s"]
+
+
+@dataclass
+class TrainArgs:
+    """Arguments of one training run."""
+
+    algo: str = "ddpg"
+    """ddpg (the paper's), td3, sac or ppo; settings from autoscoop/hyperparams/ALGO.yaml."""
+    episodes: int = 800
+    """training episodes (the paper: 800)."""
+    seed: int = 0
+    """seed of the networks, the noise and the environments."""
+    n_envs: int = 1
+    """parallel simulators (in subprocesses when more than one)."""
+    overrides: dict[str, Any] = field(default_factory=dict)
+    """environment config overrides (dotted keys), applied after the algorithm's own."""
+    out: Path | None = None
+    """run directory; default runs/ALGO-sSEED-TIME."""
+    checkpoint_every: int = 50
+    """episodes between checkpoints of the model and the replay buffer."""
+    progress: bool = True
+    """show a progress bar."""
+
+
+def load_hyperparams(algo: str) -> dict[str, Any]:
+    """The algorithm's YAML from the package (``autoscoop/hyperparams/ALGO.yaml``)."""
+    if algo not in ALGORITHMS:
+        raise ValueError(f"--algo {algo!r} is not offered; choose one of {sorted(ALGORITHMS)}")
+    text = (resources.files("autoscoop") / "hyperparams" / f"{algo}.yaml").read_text()
+    return yaml.safe_load(text)
+
+
+def _make_policy(algo: str, spec: dict[str, Any]) -> tuple[Any, dict[str, Any]]:
+    if spec.get("policy") != "paper":
+        return "MlpPolicy", {}
+    from autoscoop.agents import sb3_policies  # noqa: PLC0415
+
+    if algo in ("ddpg", "td3"):
+        return sb3_policies.PaperPolicy, {}
+    if algo == "sac":
+        return sb3_policies.PaperSACPolicy, {}
+    return "MlpPolicy", {"net_arch": {"pi": [100, 80, 60], "vf": [100, 80, 60]},
+                         "features_extractor_class": sb3_policies.NormalizedState}
+
+
+def _make_noise(spec: dict[str, Any], n_envs: int) -> Any:
+    noise_spec = spec.get("noise")
+    if not noise_spec:
+        return None
+    mean, sigma = np.zeros(3), np.full(3, noise_spec["sigma_start"])
+    if noise_spec["type"] == "ornstein_uhlenbeck":
+        base = OrnsteinUhlenbeckActionNoise(mean, sigma, theta=noise_spec.get("theta", 0.15), dt=1.0)
+    else:
+        base = NormalActionNoise(mean, sigma)
+    return VectorizedActionNoise(base, n_envs) if n_envs > 1 else base
+
+
+def set_noise_scale(noise: Any, sigma: float) -> None:
+    """Set the exploration noise's standard deviation (all environments)."""
+    for part in getattr(noise, "noises", [noise]):
+        if part is not None:
+            part._sigma = np.full(3, sigma)
+
+
+def _make_vec_env(config: ScoopConfig, n_envs: int, seed: int) -> Any:
+    factories = [partial(make_scoop_env, config) for _ in range(n_envs)]
+    vec = SubprocVecEnv(factories, start_method="fork") if n_envs > 1 else DummyVecEnv(factories)
+    vec.seed(seed)
+    return vec
+
+
+class EpisodeLogger(BaseCallback):
+    """Counts episodes, writes the CSV and TensorBoard scalars, decays the noise, checkpoints, stops at N.
+
+    Args:
+        run_dir: the run directory.
+        episodes: stop after this many episodes in total.
+        done: episodes already done (when resuming).
+        spec: the algorithm's YAML (noise schedule).
+        checkpoint_every: episodes between checkpoints.
+        progress: show a progress bar.
+    """
+
+    def __init__(self, run_dir: Path, episodes: int, done: int, spec: dict[str, Any], checkpoint_every: int,
+                 progress: bool) -> None:
+        super().__init__()
+        self.run_dir, self.episodes, self.done = run_dir, episodes, done
+        self.spec, self.checkpoint_every = spec, checkpoint_every
+        self.returns: dict[int, float] = {}
+        self.recent: list[dict[str, Any]] = []
+        self.started = time.time()
+        self._checkpoint_due = False
+        self.bar = tqdm(total=episodes, initial=done, desc="train", unit="ep", disable=not progress)
+        self.csv_file = open(run_dir / "episodes.csv", "a", newline="")  # noqa: SIM115
+        self.csv = csv.DictWriter(self.csv_file, fieldnames=CSV_FIELDS)
+        if done == 0:
+            self.csv.writeheader()
+
+    def _on_training_start(self) -> None:
+        self._update_noise()
+
+    def _update_noise(self) -> None:
+        noise_spec = self.spec.get("noise")
+        noise = getattr(self.model, "action_noise", None)
+        if noise_spec and noise is not None:
+            fraction = min(self.done / max(self.episodes, 1), 1.0)
+            set_noise_scale(noise, noise_spec["sigma_start"] + fraction * (noise_spec["sigma_end"] - noise_spec["sigma_start"]))
+
+    def _on_step(self) -> bool:
+        rewards, dones, infos = self.locals["rewards"], self.locals["dones"], self.locals["infos"]
+        for i, (reward, done, info) in enumerate(zip(rewards, dones, infos)):
+            self.returns[i] = self.returns.get(i, 0.0) + float(reward)
+            if done:
+                self._end_episode(i, info)
+                if self.done >= self.episodes:
+                    return False
+        return True
+
+    def _end_episode(self, env_index: int, info: dict[str, Any]) -> None:
+        self.done += 1
+        row = {"episode": self.done, "reward": self.returns.pop(env_index, 0.0), "fill_factor": info["fill_factor"],
+               "cycle_time_s": info.get("cycle_time_s", math.nan), "success": int(info["success"]),
+               "steps": int(round(info["elapsed_s"] / 0.25)), "spilled": info["spilled"],
+               "physics_error": int(info["physics_error"]), "wall_s": round(time.time() - self.started, 2)}
+        self.csv.writerow(row)
+        self.csv_file.flush()
+        self.recent = (self.recent + [row])[-20:]
+        successes = [r for r in self.recent if r["success"]]
+        self.logger.record("scoop/fill_factor", row["fill_factor"])
+        self.logger.record("scoop/success", row["success"])
+        self.logger.record("scoop/episode_reward", row["reward"])
+        if row["success"]:
+            self.logger.record("scoop/cycle_time_s", row["cycle_time_s"])
+        self.bar.update(1)
+        self.bar.set_postfix(fill=f"{np.mean([r['fill_factor'] for r in self.recent]):.2f}",
+                             cycle=f"{np.mean([r['cycle_time_s'] for r in successes]):.1f}" if successes else "-",
+                             success=f"{len(successes) / len(self.recent):.2f}")
+        self._update_noise()
+        if self.done % self.checkpoint_every == 0 and self.done < self.episodes:
+            self._checkpoint_due = True
+
+    def _on_rollout_end(self) -> None:
+        # after the rollout's transitions are in the replay buffer (not yet in _on_step)
+        if self._checkpoint_due:
+            save_checkpoint(self.model, self.run_dir, self.done)
+            self._checkpoint_due = False
+
+    def _on_training_end(self) -> None:
+        self.bar.close()
+        self.csv_file.close()
+
+
+def save_checkpoint(model: Any, run_dir: Path, episodes_done: int) -> None:
+    """Write model, replay buffer and progress to ``checkpoint/``, atomically (a crash keeps the last one)."""
+    tmp = run_dir / "checkpoint.tmp"
+    shutil.rmtree(tmp, ignore_errors=True)
+    tmp.mkdir()
+    model.save(tmp / "model.zip")
+    if hasattr(model, "save_replay_buffer"):
+        model.save_replay_buffer(tmp / "replay_buffer.pkl")
+    (tmp / "state.json").write_text(json.dumps({"episodes_done": episodes_done,
+                                                "num_timesteps": int(model.num_timesteps),
+                                                "model_sha256": sha256_of(tmp / "model.zip")}))
+    final = run_dir / "checkpoint"
+    old = run_dir / "checkpoint.old"
+    shutil.rmtree(old, ignore_errors=True)
+    if final.exists():
+        final.rename(old)
+    tmp.rename(final)
+    shutil.rmtree(old, ignore_errors=True)
+
+
+def _truncate_csv(path: Path, episodes: int) -> None:
+    """Keep the header and the first ``episodes`` rows (what the checkpoint had seen)."""
+    if not path.exists():
+        return
+    lines = path.read_text().splitlines(keepends=True)
+    path.write_text("".join(lines[:1 + episodes]))
+
+
+def _default_run_dir(args: TrainArgs) -> Path:
+    return Path("runs") / f"{args.algo}-s{args.seed}-{time.strftime('%Y%m%d-%H%M%S')}"
+
+
+def train(args: TrainArgs) -> Path:
+    """Train from scratch into a new run directory; return it."""
+    spec = load_hyperparams(args.algo)
+    config = ScoopConfig().with_overrides({**(spec.get("env") or {}), **args.overrides})
+    run_dir = Path(args.out) if args.out else _default_run_dir(args)
+    if (run_dir / "run.json").exists():
+        raise ValueError(f"{run_dir} already holds a run; use --resume {run_dir} to continue it, or another --out")
+    run_dir.mkdir(parents=True, exist_ok=True)
+    save_yaml(config, run_dir / "config.yaml")
+    (run_dir / "hyperparams.yaml").write_text(yaml.safe_dump(spec, sort_keys=False))
+    info = {"algo": args.algo, "seed": args.seed, "episodes": args.episodes, "n_envs": args.n_envs,
+            "autoscoop_version": __version__, "command": " ".join(sys.argv), "torch": torch.__version__,
+            "checkpoint_every": args.checkpoint_every, "status": "running", "wall_s": 0.0}
+    _write_run_json(run_dir, info)
+    return _run(run_dir, config, spec, info, done=0, model=None, progress=args.progress)
+
+
+def resume(run_dir: Path, progress: bool = True) -> Path:
+    """Continue an interrupted run from its last checkpoint (episodes after it are redone)."""
+    run_dir = Path(run_dir)
+    info_path = run_dir / "run.json"
+    if not info_path.exists():
+        raise ValueError(f"{run_dir} is not a run directory (no run.json)")
+    info = json.loads(info_path.read_text())
+    if info.get("status") == "finished":
+        raise ValueError(f"{run_dir} already finished its {info['episodes']} episodes")
+    spec = yaml.safe_load((run_dir / "hyperparams.yaml").read_text())
+    config = from_dict(yaml.safe_load((run_dir / "config.yaml").read_text()))
+    checkpoint = run_dir / "checkpoint"
+    if not (checkpoint / "state.json").exists():
+        shutil.rmtree(checkpoint, ignore_errors=True)
+        _truncate_csv(run_dir / "episodes.csv", 0)
+        (run_dir / "episodes.csv").unlink(missing_ok=True)
+        return _run(run_dir, config, spec, info, done=0, model=None, progress=progress)
+    state = json.loads((checkpoint / "state.json").read_text())
+    if sha256_of(checkpoint / "model.zip") != state["model_sha256"]:
+        raise ValueError(f"{checkpoint / 'model.zip'} does not match its recorded hash; refusing to load it")
+    _truncate_csv(run_dir / "episodes.csv", state["episodes_done"])
+    env = _make_vec_env(config, info["n_envs"], info["seed"] + state["episodes_done"])
+    algo_cls = ALGORITHMS[info["algo"]]
+    model = algo_cls.load(checkpoint / "model.zip", env=env, device="cpu")
+    if (checkpoint / "replay_buffer.pkl").exists() and hasattr(model, "load_replay_buffer"):
+        model.load_replay_buffer(checkpoint / "replay_buffer.pkl")
+    if model.action_noise is None and spec.get("noise"):
+        model.action_noise = _make_noise(spec, info["n_envs"])
+    return _run(run_dir, config, spec, info, done=state["episodes_done"], model=model, progress=progress)
+
+
+def _write_run_json(run_dir: Path, info: dict[str, Any]) -> None:
+    tmp = run_dir / "run.json.tmp"
+    tmp.write_text(json.dumps(info, indent=2) + "\n")
+    os.replace(tmp, run_dir / "run.json")
+
+
+def _run(run_dir: Path, config: ScoopConfig, spec: dict[str, Any], info: dict[str, Any], done: int,
+         model: Any, progress: bool) -> Path:
+    torch.set_num_threads(1)
+    n_envs, seed, episodes = info["n_envs"], info["seed"], info["episodes"]
+    if model is None:
+        env = _make_vec_env(config, n_envs, seed)
+        policy, policy_kwargs = _make_policy(info["algo"], spec)
+        kwargs = dict(spec.get("hyperparams") or {})
+        algo_cls = ALGORITHMS[info["algo"]]
+        if algo_cls in (DDPG, TD3):
+            kwargs["action_noise"] = _make_noise(spec, n_envs)
+        model = algo_cls(policy, env, seed=seed, device="cpu", tensorboard_log=str(run_dir / "tb"),
+                         policy_kwargs=policy_kwargs or None, verbose=0, **kwargs)
+    else:
+        model.tensorboard_log = str(run_dir / "tb")
+    started = time.time()
+    logger = EpisodeLogger(run_dir, episodes, done, spec, info["checkpoint_every"], progress)
+    max_steps = config.max_episode_steps
+    try:
+        model.learn(total_timesteps=(episodes - done + n_envs) * max_steps, callback=logger,
+                    reset_num_timesteps=done == 0, tb_log_name="run", progress_bar=False)
+    finally:
+        model.get_env().close()
+        info["wall_s"] = round(info.get("wall_s", 0.0) + time.time() - started, 1)
+        _write_run_json(run_dir, info)
+    model.save(run_dir / "policy.zip")
+    actor = actor_from_sb3(model)
+    save_actor(actor, run_dir / "policy.safetensors",
+               {"algo": info["algo"], "seed": seed, "episodes": episodes, "autoscoop_version": __version__,
+                "run": run_dir.name})
+    info.update(status="finished", policy_zip_sha256=sha256_of(run_dir / "policy.zip"))
+    _write_run_json(run_dir, info)
+    shutil.rmtree(run_dir / "checkpoint", ignore_errors=True)
+    try:
+        from autoscoop.report.learning_curve import plot_learning_curve  # noqa: PLC0415
+
+        plot_learning_curve(run_dir / "episodes.csv", run_dir / "learning_curve.png")
+    except ImportError:  # matplotlib missing: the CSV holds the same numbers
+        pass
+    return run_dir
+
+
+def args_as_dict(args: TrainArgs) -> dict[str, Any]:
+    """TrainArgs as plain data (paths as strings)."""
+    return {k: (str(v) if isinstance(v, Path) else v) for k, v in asdict(args).items()}

@@ -1,0 +1,68 @@
+"""Episode records: what an episode writes is what loads back; evaluation saves one per episode."""
+
+import numpy as np
+import pytest
+
+from autoscoop.agents.loading import heuristic_for
+from autoscoop.config import ScoopConfig
+from autoscoop.envs.scoop import make_scoop_env
+from autoscoop.evaluate import evaluate, run_episode
+from autoscoop.records import STEP_FIELDS, load_record
+from autoscoop.recorder import EpisodeRecorder, record_name
+
+SHORT = ScoopConfig().with_overrides({"env.max_episode_s": 1.5, "pile.variants": 1})
+
+
+@pytest.fixture(scope="module")
+def recorded(tmp_path_factory):
+    env = EpisodeRecorder(make_scoop_env(SHORT), {"policy": "heuristic", "source": "test"})
+    result = run_episode(env, heuristic_for(SHORT), seed=3)
+    path = env.save(tmp_path_factory.mktemp("records") / "one.npz")
+    return env.record, result, path
+
+
+def test_a_record_round_trips(recorded):
+    record, result, path = recorded
+    loaded = load_record(path)
+    assert len(loaded) == len(record) == result.steps == SHORT.max_episode_steps
+    before, after = record.arrays(), loaded.arrays()
+    assert set(after) == set(STEP_FIELDS)
+    for name in STEP_FIELDS:
+        np.testing.assert_array_equal(after[name], before[name], err_msg=name)
+    assert after["state"].shape == (len(record), 12)
+    assert after["action"].shape == (len(record), 3)
+    assert after["tip_world_m"].shape == (len(record), 3)
+    assert loaded.meta == record.meta
+
+
+def test_a_record_holds_the_outcome_and_the_start(recorded):
+    record, result, _ = recorded
+    meta = record.meta
+    assert meta["seed"] == 3 and meta["policy"] == "heuristic" and meta["source"] == "test"
+    assert meta["pile"]["angle_deg"] == SHORT.pile.angle_deg and meta["time_limit_s"] == 1.5
+    outcome = meta["outcome"]
+    assert outcome["particles"] == result.particles and outcome["steps"] == result.steps
+    assert outcome["mass_kg"] == pytest.approx(result.mass_kg)
+    assert outcome["episode_return"] == pytest.approx(result.episode_return)
+    assert len(meta["start"]["particles_xz_m"]) == SHORT.pile.n_particles
+    arrays = record.arrays()
+    np.testing.assert_allclose(arrays["reward_progress"] + arrays["reward_mass"], arrays["reward"])
+    np.testing.assert_allclose(arrays["time_s"], SHORT.env.control_period_s * np.arange(1, len(record) + 1))
+
+
+def test_evaluate_saves_one_record_per_episode(tmp_path):
+    results = evaluate(heuristic_for(SHORT), SHORT, episodes=2, seed=5, progress=False, records_dir=tmp_path,
+                       records_meta={"policy": "heuristic"})
+    for result in results:
+        record = load_record(tmp_path / record_name(result.seed))
+        assert record.meta["seed"] == result.seed and record.meta["source"] == "eval"
+        assert record.meta["outcome"]["fill_factor"] == pytest.approx(result.fill_factor)
+        assert record.meta["outcome"]["success"] == result.success
+        assert len(record) == result.steps
+
+
+def test_loading_something_else_fails_clearly(tmp_path):
+    path = tmp_path / "other.npz"
+    np.savez(path, x=np.zeros(3))
+    with pytest.raises(ValueError, match="not an autoscoop episode record"):
+        load_record(path)

@@ -1,0 +1,168 @@
+"""Training: the paper's networks, safe policy files, the train command, resume, refusing pickles."""
+
+import csv
+import json
+import os
+import pickle
+import signal
+import subprocess
+import sys
+import time
+import zipfile
+from pathlib import Path
+
+import gymnasium as gym
+import numpy as np
+import pytest
+import torch
+from torch import nn
+
+import autoscoop  # noqa: F401
+from autoscoop.agents.loading import PolicyError, load_policy
+from autoscoop.agents.networks import PaperActor
+from autoscoop.agents.policy_files import ActorPolicy, PolicyFileError, save_actor
+from autoscoop.cli import main
+from autoscoop.config import ScoopConfig
+
+FAST = ["--set", "pile.variants=2", "--no-progress"]
+
+
+def linear_sizes(module: nn.Module) -> list[tuple[int, int]]:
+    return [(m.in_features, m.out_features) for m in module.modules() if isinstance(m, nn.Linear)]
+
+
+def test_paper_policy_layer_sizes_and_merge_point():
+    from stable_baselines3 import DDPG
+
+    from autoscoop.agents.sb3_policies import PaperPolicy
+
+    model = DDPG(PaperPolicy, gym.make("autoscoop/Scoop-v0", **{"pile.variants": 1}), buffer_size=100)
+    actor, critic = model.policy.actor, model.policy.critic
+    assert linear_sizes(actor) == [(12, 100), (100, 80), (80, 60), (60, 3)]
+    assert [m.normalized_shape for m in actor.modules() if isinstance(m, nn.LayerNorm)] == [(100,), (80,), (60,)]
+    assert isinstance(actor.mu[-1], nn.Tanh)
+    # the action (3) joins after the critic's first layer: 12 -> 100, then 100 + 3 -> 80
+    assert linear_sizes(critic) == [(12, 100), (103, 80), (80, 60), (60, 1)]
+    assert len([m for m in critic.modules() if isinstance(m, nn.LayerNorm)]) == 3
+
+
+def test_safe_file_round_trip_gives_the_same_actions(tmp_path):
+    torch.manual_seed(0)
+    actor = PaperActor()
+    path = save_actor(actor, tmp_path / "actor")
+    loaded = ActorPolicy(path)
+    states = np.random.default_rng(0).normal(size=(256, 12)).astype(np.float32)
+    with torch.no_grad():
+        expected = actor(torch.as_tensor(states)).numpy()
+    got = np.stack([loaded.act(s) for s in states])
+    assert np.abs(got - expected).max() <= 1e-6
+
+
+def test_tampered_weights_are_refused(tmp_path):
+    path = save_actor(PaperActor(), tmp_path / "actor")
+    data = bytearray(path.read_bytes())
+    data[-1] ^= 0xFF
+    path.write_bytes(bytes(data))
+    with pytest.raises(PolicyFileError, match="SHA-256"):
+        ActorPolicy(path)
+
+
+def test_train_command_smoke_run_writes_the_run_directory(tmp_path):
+    out = tmp_path / "run"
+    assert main(["train", "--episodes", "8", "--checkpoint-every", "4", "--out", str(out), *FAST]) == 0
+    info = json.loads((out / "run.json").read_text())
+    assert info["status"] == "finished" and info["seed"] == 0 and info["autoscoop_version"]
+    rows = list(csv.DictReader(open(out / "episodes.csv")))
+    assert len(rows) == 8 and {"reward", "fill_factor", "cycle_time_s", "success"} <= set(rows[0])
+    for name in ("config.yaml", "hyperparams.yaml", "policy.zip", "policy.safetensors", "policy.json",
+                 "learning_curve.png"):
+        assert (out / name).is_file(), name
+    assert any((out / "tb").rglob("events.out.tfevents.*"))
+    policy = load_policy(str(out), ScoopConfig())
+    assert policy.act(np.zeros(12, dtype=np.float32)).shape == (3,)
+
+
+def test_resume_continues_steps_and_keeps_the_replay_buffer(tmp_path, monkeypatch):
+    from stable_baselines3 import DDPG
+
+    from autoscoop import train as train_mod
+
+    out = tmp_path / "run"
+    original = train_mod.EpisodeLogger._end_episode
+
+    def crash_after_five(self, env_index, info):
+        original(self, env_index, info)
+        if self.done == 5:
+            raise KeyboardInterrupt("simulated crash")
+
+    monkeypatch.setattr(train_mod.EpisodeLogger, "_end_episode", crash_after_five)
+    with pytest.raises(KeyboardInterrupt):
+        train_mod.train(train_mod.TrainArgs(episodes=8, checkpoint_every=4, out=out, progress=False,
+                                            overrides={"pile.variants": 2}))
+    state = json.loads((out / "checkpoint" / "state.json").read_text())
+    assert state["episodes_done"] == 4
+    saved = DDPG.load(out / "checkpoint" / "model.zip")
+    saved.load_replay_buffer(out / "checkpoint" / "replay_buffer.pkl")
+    buffer_at_checkpoint = saved.replay_buffer.size()
+    assert buffer_at_checkpoint == state["num_timesteps"] > 0
+
+    monkeypatch.setattr(train_mod.EpisodeLogger, "_end_episode", original)
+    seen = {}
+    original_learn = DDPG.learn
+
+    def spy_learn(self, *args, **kwargs):
+        seen["start_timesteps"] = self.num_timesteps
+        seen["start_buffer"] = self.replay_buffer.size()
+        return original_learn(self, *args, **kwargs)
+
+    monkeypatch.setattr(DDPG, "learn", spy_learn)
+    train_mod.resume(out, progress=False)
+    assert seen["start_timesteps"] == state["num_timesteps"]
+    assert seen["start_buffer"] == buffer_at_checkpoint
+    rows = list(csv.DictReader(open(out / "episodes.csv")))
+    assert [int(r["episode"]) for r in rows] == list(range(1, 9))
+    assert json.loads((out / "run.json").read_text())["status"] == "finished"
+
+
+def test_kill_9_loses_at_most_one_checkpoint_interval(tmp_path):
+    out = tmp_path / "run"
+    command = [sys.executable, "-m", "autoscoop.cli", "train", "--episodes", "60", "--checkpoint-every", "3",
+               "--out", str(out), *FAST]
+    process = subprocess.Popen(command, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    deadline = time.time() + 120
+    while time.time() < deadline and not (out / "checkpoint" / "state.json").exists():
+        time.sleep(0.2)
+    time.sleep(1.0)
+    os.kill(process.pid, signal.SIGKILL)
+    process.wait()
+    rows_before = len(list(csv.DictReader(open(out / "episodes.csv"))))
+    done = json.loads((out / "checkpoint" / "state.json").read_text())["episodes_done"]
+    assert rows_before - done <= 3 + 1
+    run = subprocess.run([sys.executable, "-m", "autoscoop.cli", "train", "--resume", str(out), "--no-progress"],
+                         capture_output=True, text=True, timeout=300)
+    assert run.returncode == 0, run.stderr
+    rows = list(csv.DictReader(open(out / "episodes.csv")))
+    assert [int(r["episode"]) for r in rows] == list(range(1, 61))
+
+
+class _Exploit:
+    """A pickle payload: unpickling it would create a file."""
+
+    def __init__(self, target: str) -> None:
+        self.target = target
+
+    def __reduce__(self):
+        return (Path.touch, (Path(self.target),))
+
+
+def test_a_zip_with_a_pickle_payload_is_refused_without_trust(tmp_path):
+    marker = tmp_path / "pwned"
+    archive = tmp_path / "policy.zip"
+    with zipfile.ZipFile(archive, "w") as zf:
+        zf.writestr("data", json.dumps({"policy_class": {":serialized:": pickle.dumps(_Exploit(str(marker))).hex()}}))
+        zf.writestr("pytorch_variables.pth", pickle.dumps(_Exploit(str(marker))))
+    with pytest.raises(PolicyError, match="--trust"):
+        load_policy(str(archive), ScoopConfig())
+    assert not marker.exists()
+    assert main(["eval", "--policy", str(archive), "--episodes", "1"]) == 2
+    assert not marker.exists()
