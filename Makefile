@@ -24,7 +24,7 @@ install: $(VENV)/.installed
 
 install-test: $(VENV)/.installed-test
 
-demo: install
+demo: install system-deps
 	$(BIN)/autoscoop demo
 
 # System packages the tests need, installed when missing and root.

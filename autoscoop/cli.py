@@ -19,6 +19,8 @@ COMMANDS = [
     "autoscoop.commands.bench_cmd",
     "autoscoop.commands.config_cmd",
     "autoscoop.commands.payload_cmd",
+    "autoscoop.commands.export_cmd",
+    "autoscoop.commands.ros_cmd",
 ]
 """Modules that each offer ``register(subparsers)``; a new command adds one line here."""
 

@@ -46,6 +46,14 @@ def _check(key: str, value: Any, f: dataclasses.Field) -> None:
             raise ConfigError(f"{key} = {value!r} is not allowed; choose one of {list(meta['choices'])}")
         return
     expected = type(f.default)
+    if expected is tuple:
+        if not isinstance(value, tuple) or not all(isinstance(v, (int, float)) and not isinstance(v, bool)
+                                                   and math.isfinite(v) for v in value):
+            raise ConfigError(f"{key} = {value!r} must be a list of numbers, each in [{meta['low']}, {meta['high']}] {meta['unit']}")
+        for item in value:
+            if not meta["low"] <= item <= meta["high"]:
+                raise ConfigError(f"{key} holds {item!r}, out of range; allowed [{meta['low']}, {meta['high']}] {meta['unit']}")
+        return
     if expected is int and (isinstance(value, bool) or not isinstance(value, int)):
         raise ConfigError(f"{key} = {value!r} must be an integer in [{meta['low']}, {meta['high']}]")
     if expected is float:
@@ -84,6 +92,8 @@ class PileConfig(_Section):
 
     _section = "pile"
     angle_deg: float = _field(32.0, "deg", "mean slope of the pile's front face", 15.0, 60.0)
+    angle_mix_deg: tuple = _field((), "deg", "if given, each pile variant takes one of these face slopes in turn "
+                                  "(training on a mix of piles); empty: always angle_deg", 15.0, 60.0)
     n_particles: int = _field(72, "-", "number of particles", 1, 400)
     radius_m: float = _field(0.034, "m", "particle radius", 0.01, 0.08)
     particle_mass_kg: float = _field(0.3, "kg", "mass of one particle", 0.01, 5.0)
@@ -101,9 +111,10 @@ class RewardConfig(_Section):
 
     _section = "reward"
     c_w: float = _field(10.0, "-", "weight c_w of the mass bonus c_w * w_t paid on reaching the terminal point", 0.0, 1000.0)
-    epsilon_m: float = _field(0.08, "m", "tolerance epsilon: the tip within it of the terminal point is success", 0.001, 0.5)
+    epsilon_m: float = _field(0.10, "m", "tolerance epsilon: the tip within it of the terminal point is success", 0.001, 0.5)
     delta_m: float = _field(0.06, "m", "Delta: the tip within it of a particle centre is 'penetrating'", 0.001, 0.5)
-    terminal_dx_m: float = _field(0.10, "m", "terminal point x from the pile's toe (positive: over the pile, raised clear of it)", -1.0, 1.0)
+    distance_scale_m: float = _field(1.0, "m", "distances are divided by it inside tanh (1 m: the paper's eq. 5)", 0.01, 10.0)
+    terminal_dx_m: float = _field(0.20, "m", "terminal point x from the pile's toe (over the pile, where a scoop ends, raised clear of it)", -1.0, 1.0)
     terminal_z_m: float = _field(0.30, "m", "terminal point height above the ground", 0.0, 1.0)
     rated_load_kg: float = _field(7.0, "kg", "rated bucket load; fill factor = mass in bucket / rated load", 0.1, 100.0)
 
@@ -149,8 +160,10 @@ class ScoopConfig:
         return max(1, int(round(self.env.control_period_s / self.env.timestep_s)))
 
     def to_dict(self) -> dict[str, dict[str, Any]]:
-        """Plain nested dict, as written to YAML."""
-        return {name: {f.name: getattr(getattr(self, name), f.name) for f in dataclasses.fields(getattr(self, name))}
+        """Plain nested dict, as written to YAML (tuples as lists)."""
+        def plain(value: Any) -> Any:
+            return list(value) if isinstance(value, tuple) else value
+        return {name: {f.name: plain(getattr(getattr(self, name), f.name)) for f in dataclasses.fields(getattr(self, name))}
                 for name in SECTIONS}
 
     def with_overrides(self, overrides: Mapping[str, Any]) -> "ScoopConfig":
@@ -211,6 +224,9 @@ def from_dict(data: Mapping[str, Any]) -> ScoopConfig:
             if f.name in values and isinstance(f.default, float) and isinstance(values[f.name], int) \
                     and not isinstance(values[f.name], bool):
                 values[f.name] = float(values[f.name])
+            if f.name in values and isinstance(f.default, tuple) and isinstance(values[f.name], (list, tuple)):
+                values[f.name] = tuple(float(v) if isinstance(v, int) and not isinstance(v, bool) else v
+                                       for v in values[f.name])
         parts[section] = cls(**values)
     return ScoopConfig(**parts)
 

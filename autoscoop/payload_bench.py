@@ -15,7 +15,8 @@ window long enough to span that rattle, and reports its size (``rattle_std_kg``:
 deviation of the instantaneous eq. 8 estimate over the window).
 
 Moving scoops: the scripted baseline scoops the default pile; at every control step both estimators
-read the instantaneous torques and are compared with the true mass.
+read the torques (instantaneous, and averaged over the control period as the environment's load
+cell does) and are compared with the true mass.
 """
 
 from __future__ import annotations
@@ -77,8 +78,7 @@ class HoldSample:
 
 def carried_particles(sim: ScoopSim) -> tuple[np.ndarray, np.ndarray]:
     """(inside, heaped) masks: inside the paper's quadrilateral; off the ground on or above the bucket, not inside."""
-    local = sim.particles_in_bucket_frame() if hasattr(sim, "particles_in_bucket_frame") else \
-        (sim.particle_positions - sim.data.xpos[sim._bucket]) @ sim.data.xmat[sim._bucket].reshape(3, 3)
+    local = sim.particles_in_bucket_frame()
     inside = kinematics.inside_bucket(local)
     (x_lo, x_hi), (z_lo, z_hi) = CARRIED_BOX_IN_BUCKET_M
     radius = sim.config.pile.radius_m

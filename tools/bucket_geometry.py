@@ -4,8 +4,9 @@ The bucket's inner outline is the paper's quadrilateral (SPEC.md): tilt joint J,
 from J at +46 deg, cutting edge (tip) 0.215 m from J at 0 deg, point B 0.10 m from J at -41 deg,
 angles measured from the J->tip line. Frame: the bucket body frame, x along J->tip, z toward A,
 y across the bucket. The shell is B->J->A (back) and B->tip (floor); A->tip is the mouth. Each
-plate is a box whose inner face lies on the outline, so a particle's centre inside the outline is
-inside the bucket. Run: ``python tools/bucket_geometry.py --width 0.44``.
+plate lies outside the outline with its inner face on it, so a particle's centre inside the
+outline is inside the bucket. The back plates are boxes; the floor is a convex wedge that tapers
+to a sharp cutting edge (a blunt 2 cm edge pushes the pile instead of slicing under it). Run: ``python tools/bucket_geometry.py --width 0.44``.
 """
 
 import argparse
@@ -34,13 +35,24 @@ def plate(p: np.ndarray, q: np.ndarray, thickness: float, half_width: float, nam
             f'pos="{centre[0]:.5f} 0 {centre[1]:.5f}" euler="0 {pitch:.5f} 0"/>')
 
 
+def floor_wedge(thickness: float, half_width: float, edge_thickness: float = 0.002) -> str:
+    """The floor as a convex wedge: ``thickness`` under B, tapering to a sharp cutting edge at the tip."""
+    d = (TIP - B) / np.linalg.norm(TIP - B)
+    n = np.array([d[1], -d[0]])
+    if np.dot(n, (B + TIP) / 2 - CENTROID) < 0:
+        n = -n
+    section = [B, TIP, TIP + n * edge_thickness, B + n * thickness]
+    verts = " ".join(f"{x:.5f} {y:.4f} {z:.5f}" for x, z in section for y in (-half_width, half_width))
+    return f'<mesh name="bucket_floor" vertex="{verts}"/>'
+
+
 def main() -> None:
     parser = argparse.ArgumentParser()
     parser.add_argument("--width", type=float, default=0.44, help="inner width across the bucket, m")
     parser.add_argument("--thickness", type=float, default=0.008, help="plate thickness, m")
     args = parser.parse_args()
     hw, t = args.width / 2, args.thickness
-    print(plate(B, TIP, t, hw + t, "bucket_floor"))
+    print(floor_wedge(t, hw + t))
     print(plate(J, B, t, hw + t, "bucket_back_lower"))
     print(plate(A, J, t, hw + t, "bucket_back_upper"))
     verts = " ".join(f"{x:.5f} {y:.4f} {z:.5f}" for x, z in (J, A, TIP, B) for y in (-t / 2, t / 2))

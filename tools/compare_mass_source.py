@@ -71,7 +71,8 @@ def main(argv: list[str] | None = None) -> int:
         results[source] = run(args.policy, config, args.episodes, args.seed, args.trust)
         r = results[source]
         print(f"{source:<6}  fill factor {r['fill_factor_mean']:.3f} +- {r['fill_factor_std']:.3f}   "
-              f"|w*rated - true| mean {r['w_abs_error_kg_mean']:.3f} kg, last step {r['w_abs_error_kg_last_step_mean']:.3f} kg")
+              f"|w*rated - true| mean {r['w_abs_error_kg_mean']:.3f} kg, "
+              f"last step {r['w_abs_error_kg_last_step_mean']:.3f} kg")
     gap = 100.0 * abs(results["torque"]["fill_factor_mean"] - results["truth"]["fill_factor_mean"])
     verdict = "pass" if gap <= ACCEPTANCE_POINTS else "FAIL"
     print(f"policy {args.policy}, {args.episodes} episodes, noise {base.env.load_cell_noise_nm} N*m: "

@@ -25,8 +25,8 @@ class HeuristicParams:
     """Thresholds and rates of the scripted scoop (angles in rad, distances in m, times in s)."""
 
     contact_gap_m: float = 0.02
-    """approach ends when the tip is this close to the pile."""
-    penetrate_steps: int = 10
+    """approach ends when the tip is this close to the pile (or once anything is in the bucket)."""
+    penetrate_steps: int = 8
     """control steps of driving into the pile with the bucket level before curling."""
     penetrate_tilt_rad: float = 0.05
     """tilt held while penetrating (positive tips the cutting edge down)."""
@@ -42,7 +42,7 @@ class HeuristicParams:
     """share of the wheel odometry that is slip while pushing into the pile (dead reckoning)."""
     exit_tilt_rad: float = -0.5
     """tilt held on the way out (fully curled)."""
-    exit_height_margin_m: float = 0.0
+    exit_height_margin_m: float = 0.03
     """aim the tip this much above the terminal point (the arm sags under load)."""
     terminal_dx_m: float = RewardConfig().terminal_dx_m
     """terminal point x from the pile's toe."""
@@ -98,7 +98,9 @@ class HeuristicScooper:
         self._last_tip_chassis_x, self._last_speed = tip_x, speed
 
         desired = self._targets.copy()
-        if self.phase == "approach" and pile_distance <= p.contact_gap_m:
+        # the pile is reached when the tip is close to it, or when material already rides in the bucket
+        # (a sharp edge slides under the first particles before the gap closes)
+        if self.phase == "approach" and (pile_distance <= p.contact_gap_m or obs[0] > 0.0):
             self.phase, self._tip_world_x = "penetrate", -pile_distance
         if self.phase == "penetrate" and self._fill_steps >= p.penetrate_steps:
             self.phase, self._fill_steps = "fill", 0

@@ -44,6 +44,10 @@ def load_policy(spec: str, config: ScoopConfig, trust: bool = False) -> Policy:
     """
     if spec == "heuristic":
         return heuristic_for(config)
+    if spec.endswith(".onnx") and Path(spec).is_file():  # before any torch import: the robot may lack torch
+        from autoscoop.deploy.onnx_policy import OnnxPolicy  # noqa: PLC0415
+
+        return OnnxPolicy(spec)
     from autoscoop.agents.policy_files import ActorPolicy, PolicyFileError  # noqa: PLC0415 - torch
 
     if spec == DEFAULT_POLICY:

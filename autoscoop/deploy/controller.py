@@ -38,6 +38,7 @@ from autoscoop.config import ScoopConfig
 from autoscoop.deploy.robot_config import RobotNodeConfig
 from autoscoop.deploy.safety import Command, CommandLimiter, InputWatchdog
 from autoscoop.records import EpisodeRecord
+from autoscoop.reward import is_penetrating
 from autoscoop.state import CommandLimits, Measurements, advance_targets, build_state, validate_action
 
 SENSOR_INPUTS = ("joint_states", "odom", "pile_range", "bucket_torque")
@@ -137,8 +138,10 @@ class ControllerCore:
         self.delays: dict[str, deque] = {}
 
     # ---------------------------------------------------------------- inputs (each with its arrival time)
-    def joint_states(self, names: Sequence[str], positions: Sequence[float], now: float) -> None:
-        """``sensor_msgs/JointState``: names and positions (raw readings where a potentiometer is calibrated)."""
+    def joint_states(self, names: Sequence[str], positions: Sequence[float], now: float) -> bool:
+        """``sensor_msgs/JointState``: names and positions (raw readings where a potentiometer is calibrated).
+
+        The sensor inputs return whether the reading was valid (an invalid one stops the robot at once)."""
         values = {}
         for joint in ("lift", "tilt"):
             name = getattr(self.config.sensors, f"{joint}_joint")
@@ -147,47 +150,53 @@ class ControllerCore:
                 reading = float(positions[index])
             except (ValueError, IndexError, TypeError):
                 self.watchdog.invalid("joint_states", f"no position for joint {name!r}")
-                return
+                return False
             pot = self.config.potentiometer(joint)
             angle = pot.to_rad(reading) if (pot is not None and math.isfinite(reading)) else reading
             low, high = self._joint_bounds[joint]
             if not math.isfinite(angle):
                 self.watchdog.invalid("joint_states", f"{joint} reading is {reading}")
-                return
+                return False
             if not low <= angle <= high:
                 self.watchdog.invalid("joint_states", f"{joint} = {angle:.3f} rad is outside [{low:.3f}, {high:.3f}]")
-                return
+                return False
             values[joint] = angle
         self.lift_rad, self.tilt_rad = values["lift"], values["tilt"]
         self.watchdog.valid("joint_states", now)
+        return True
 
-    def odometry(self, speed_mps: float, now: float) -> None:
+    def odometry(self, speed_mps: float, now: float) -> bool:
         """``nav_msgs/Odometry``: forward speed, m/s."""
         limit = self.config.sensors.max_speed_reading_mps
         if not math.isfinite(speed_mps) or abs(speed_mps) > limit:
             self.watchdog.invalid("odom", f"speed {speed_mps} m/s is not within +-{limit:g} m/s")
-            return
+            return False
         self.speed_mps = float(speed_mps)
         self.watchdog.valid("odom", now)
+        return True
 
-    def pile_range(self, range_m: float, now: float, min_range_m: float = 0.0, max_range_m: float = math.inf) -> None:
+    def pile_range(self, range_m: float, now: float, min_range_m: float = 0.0, max_range_m: float = math.inf) -> bool:
         """``sensor_msgs/Range``: distance from the tip to the pile, m; outside [min, max] is no reading (REP 117)."""
         low = min_range_m if math.isfinite(min_range_m) else 0.0
-        high = max_range_m if (math.isfinite(max_range_m) and max_range_m > low) else math.inf
+        high = self.config.sensors.max_range_m
+        if math.isfinite(max_range_m) and low < max_range_m < high:
+            high = max_range_m
         if not math.isfinite(range_m) or not (max(low, 0.0) <= range_m <= high):
             self.watchdog.invalid("pile_range", f"range {range_m} m is not within [{max(low, 0.0):g}, {high:g}] m")
-            return
+            return False
         self.range_m = float(range_m)
         self.watchdog.valid("pile_range", now)
+        return True
 
-    def bucket_torque(self, torque_nm: float, now: float) -> None:
+    def bucket_torque(self, torque_nm: float, now: float) -> bool:
         """``std_msgs/Float64``: torque at the tilt joint, N*m."""
         limit = self.config.sensors.max_torque_nm
         if not math.isfinite(torque_nm) or abs(torque_nm) > limit:
             self.watchdog.invalid("bucket_torque", f"torque {torque_nm} N*m is not within +-{limit:g} N*m")
-            return
+            return False
         self.torque_nm = float(torque_nm)
         self.watchdog.valid("bucket_torque", now)
+        return True
 
     def estop(self, engaged: bool, now: float) -> None:
         """``std_msgs/Bool``: true stops the robot until a false arrives."""
@@ -208,9 +217,10 @@ class ControllerCore:
         self.delays.setdefault(name, deque(maxlen=100_000)).append(float(delay_s))
 
     # ---------------------------------------------------------------- the loop
-    def next_wakeup(self) -> float:
-        """When :meth:`update` must run next: the next control period, an input going stale, the scoop's end."""
-        times = [self._next_control, self.watchdog.next_expiry() + WAKE_SLACK_S]
+    def next_wakeup(self, now: float) -> float:
+        """When :meth:`update` must run next after ``now``: the next control period, an input going stale,
+        the scoop's end."""
+        times = [self._next_control, self.watchdog.next_expiry(now) + WAKE_SLACK_S]
         if self.episode is not None:
             times.append(self.episode.start + self.config.control.episode_s)
         return min(times)
@@ -270,6 +280,8 @@ class ControllerCore:
         measured = self._measurements()
         state = build_state(measured, episode.previous, self.config.payload.rated_load_kg)
         try:
+            if not np.all(np.isfinite(state)):
+                raise ValueError(f"state is not finite: {state.tolist()}")
             action = validate_action(self.policy.act(state))
         except Exception as error:  # a broken policy stops the robot; it never crashes the node
             self._log_transition("fault", f"policy error: {error}")
@@ -326,7 +338,8 @@ class ControllerCore:
             time_s=now - self.episode.start, state=state.astype(float), action=action, reward=nan,
             reward_progress=nan, reward_mass=nan, particles_in_bucket=nan, mass_in_bucket_kg=nan,
             lift_rad=self.lift_rad, tilt_rad=self.tilt_rad, lift_torque_nm=nan, tilt_torque_nm=self.torque_nm,
-            tip_world_m=[nan, nan, nan], penetrating=nan)
+            tip_world_m=[nan, nan, nan],
+            penetrating=is_penetrating(self.range_m + self.task.pile.radius_m, self.task.reward))
 
     def _end_episode(self, why: str, now: float) -> None:
         episode, self.episode = self.episode, None
@@ -337,7 +350,8 @@ class ControllerCore:
             "success": False, "cycle_time_s": None, "spilled": math.nan, "physics_error": False,
             "steps": len(episode.record), "episode_return": math.nan, "ended": why, "faults": episode.faults,
             "duration_s": now - episode.start,
-            "note": "robot's own view: mass is the payload estimate; success and spillage are not measured",
+            "note": "the robot's own view: mass is the payload estimate, penetrating is judged from pile_range; "
+                    "success and spillage are not measured",
         }
         episode.record.meta["transport_delay_s"] = self.delay_summary()
         self.log("info", f"scoop {episode.index} ended ({why}) after {now - episode.start:.2f} s, "

@@ -76,6 +76,8 @@ class SensorsSection(_Section):
     joint_margin_rad: float = _field(0.05, "rad", "a joint reading this far outside its range is a sensor fault",
                                      0.0, 0.5)
     max_speed_reading_mps: float = _field(1.0, "m/s", "an odometry speed above this is a sensor fault", 0.05, 10.0)
+    max_range_m: float = _field(10.0, "m", "a pile_range reading above this (or above the message's max_range) is "
+                                          "no reading", 0.1, 100.0)
     max_torque_nm: float = _field(200.0, "N*m", "a bucket torque reading above this (either sign) is a sensor fault",
                                   1.0, 5000.0)
 

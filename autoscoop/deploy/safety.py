@@ -54,13 +54,13 @@ class InputWatchdog:
             elif last is None:
                 out.append(f"{name}: no message yet")
             elif now - last > self.timeout_s:
-                out.append(f"{name}: stale ({now - last:.3f} s old, timeout {self.timeout_s:g} s)")
+                out.append(f"{name}: stale (no valid message for over {self.timeout_s:g} s)")
         return out
 
-    def next_expiry(self) -> float:
-        """The earliest time a healthy input goes stale (``inf`` when none can)."""
+    def next_expiry(self, now: float) -> float:
+        """The earliest time after ``now`` that a healthy input goes stale (``inf`` when none can)."""
         times = [last + self.timeout_s for name, last in self._last_valid.items()
-                 if last is not None and name not in self._bad]
+                 if last is not None and name not in self._bad and last + self.timeout_s >= now]
         return min(times, default=math.inf)
 
     def age(self, name: str, now: float) -> float:

@@ -45,7 +45,7 @@ class ScoopEnv(gym.Env):
     | 2     | tip_z   | cutting edge z, chassis frame            | m    | kinematics (site tip)             |
     | 3     | joint_x | tilt joint x, chassis frame              | m    | kinematics (site bucket_joint)    |
     | 4     | joint_z | tilt joint z, chassis frame              | m    | kinematics (site bucket_joint)    |
-    | 5     | d_pile  | tip to the nearest particle surface not in or heaped on the bucket | m | particle_* |
+    | 5     | d_pile  | tip to the nearest particle surface outside the bucket | m | particle_* bodies   |
     | 6     | v       | forward speed, wheel odometry            | m/s  | sensors wheel_*_vel               |
     | 7     | lift    | lift angle                               | rad  | sensor lift_pos                   |
     | 8     | tilt    | tilt angle                               | rad  | sensor tilt_pos                   |
@@ -158,13 +158,13 @@ class ScoopEnv(gym.Env):
     # ------------------------------------------------------------------ internals
     def _observe(self) -> tuple[np.ndarray, dict[str, Any]]:
         sim, cfg = self.sim, self.config
-        inside, heaped = sim.particles_carried()
+        inside = sim.particles_in_bucket()
         self._ever_inside |= inside
         true_mass = float(sim.particle_masses[inside].sum())
         tip = sim.tip_world
         offsets = sim.particle_positions - tip
         distances = np.sqrt(np.einsum("ij,ij->i", offsets, offsets))
-        outside = ~(inside | heaped)
+        outside = ~inside
         tip_to_pile = float(max(distances[outside].min() - cfg.pile.radius_m, 0.0)) if outside.any() else 0.0
         nearest = float(distances.min()) if len(distances) else np.inf
         tip_to_terminal = float(np.linalg.norm(tip - self._terminal))
@@ -184,6 +184,7 @@ class ScoopEnv(gym.Env):
             "spilled": int((self._ever_inside & ~inside).sum()),
             "physics_error": False,
             "elapsed_s": sim.elapsed_s,
+            "pile_angle_deg": sim.pile_angle_deg,
             "tip_to_pile_m": tip_to_pile,
             "tip_to_terminal_m": tip_to_terminal,
             "lift_torque_nm": sim.lift_torque_nm,

@@ -6,6 +6,7 @@ This module owns the simulator; the task (state, reward, episode) lives in ``aut
 
 from __future__ import annotations
 
+from dataclasses import replace
 from importlib import resources
 from typing import Callable
 
@@ -13,7 +14,7 @@ import mujoco
 import numpy as np
 
 from autoscoop import kinematics
-from autoscoop.config import ScoopConfig
+from autoscoop.config import PileConfig, ScoopConfig
 from autoscoop.sim.pile import pile_layout
 
 WHEELS = ("wheel_fl", "wheel_fr", "wheel_rl", "wheel_rr")
@@ -124,6 +125,7 @@ class ScoopSim:
         self._tilt_act_state = m.actuator_actadr[self._tilt_act]
         self.time_origin_s = 0.0
         self._settled: dict[int, mujoco.MjData] = {}
+        self.variant = 0
         self.substep_callback: Callable[[], None] | None = None
         """Called after every physics step when set (a load cell averaging its readings); steps then run one by one."""
 
@@ -138,6 +140,7 @@ class ScoopSim:
         """
         rng = rng if rng is not None else np.random.default_rng()
         variant = int(rng.integers(self.config.pile.variants))
+        self.variant = variant
         if variant not in self._settled:
             self._settled[variant] = self._settle(variant)
         mujoco.mj_copyData(self.data, self.model, self._settled[variant])
@@ -146,6 +149,16 @@ class ScoopSim:
             self.data.qpos[self._root_qpos] += rng.uniform(-jitter, jitter)
         mujoco.mj_kinematics(self.model, self.data)  # positions only: keeps the pile asleep
         self.time_origin_s = float(self.data.time)
+
+    def pile_of_variant(self, variant: int) -> PileConfig:
+        """The pile settings of one variant: ``pile.angle_mix_deg`` in turn, if given."""
+        mix = self.config.pile.angle_mix_deg
+        return replace(self.config.pile, angle_deg=mix[variant % len(mix)]) if mix else self.config.pile
+
+    @property
+    def pile_angle_deg(self) -> float:
+        """Face slope of the pile in the current episode, degrees."""
+        return self.pile_of_variant(self.variant).angle_deg
 
     def _settle(self, variant: int) -> mujoco.MjData:
         """Build pile ``variant`` (its own jitter), let it settle under gravity, return the state."""
@@ -159,7 +172,7 @@ class ScoopSim:
         d.qpos[self._tilt_qpos] = tilt
         d.act[self._lift_act_state] = lift
         d.act[self._tilt_act_state] = tilt
-        centres = pile_layout(cfg.pile, np.random.default_rng([variant, 20211]))
+        centres = pile_layout(self.pile_of_variant(variant), np.random.default_rng([variant, 20211]))
         for adr, centre in zip(self._particle_qpos, centres):
             d.qpos[adr:adr + 7] = [*centre, 1, 0, 0, 0]
         mujoco.mj_forward(m, d)

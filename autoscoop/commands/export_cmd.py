@@ -1,0 +1,57 @@
+"""``autoscoop export``: write a trained policy's actor as ONNX (its scaling included) and check it.
+
+The file runs with onnxruntime alone (``autoscoop ros controller --policy FILE.onnx`` needs no
+torch). After writing it, the command compares it with the torch actor on random states over the
+robot's workspace and prints the largest difference and the time of one inference step; it fails
+when the difference exceeds 1e-5.
+"""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+from autoscoop.commands import add_config_args, config_from_args, write_json
+
+
+def register(subparsers: argparse._SubParsersAction) -> None:
+    parser = subparsers.add_parser("export", help="export a policy's actor to ONNX (runs with onnxruntime alone)",
+                                   description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--policy", default="default", help="default, a .safetensors file or a run directory")
+    parser.add_argument("--onnx", type=Path, required=True, metavar="OUT.onnx", help="the file to write")
+    parser.add_argument("--check-states", type=int, default=10_000,
+                        help="random states for the parity check (default 10000; 0 skips it)")
+    parser.add_argument("--json", type=Path, help="write the parity check and timings to this JSON file")
+    parser.add_argument("--trust", action="store_true", help="allow a pickled SB3 zip as the policy")
+    add_config_args(parser)
+    parser.set_defaults(func=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    from autoscoop.agents.loading import load_policy  # noqa: PLC0415
+    from autoscoop.deploy.export import check_parity, export_onnx, exportable_actor, random_states  # noqa: PLC0415
+
+    if args.onnx.suffix != ".onnx":
+        raise SystemExit(f"--onnx must name a .onnx file, got {args.onnx}")
+    if args.check_states < 0:
+        raise SystemExit(f"--check-states must be 0 or more, got {args.check_states}")
+    config = config_from_args(args)
+    policy = load_policy(args.policy, config, trust=args.trust)
+    actor = exportable_actor(policy)
+    path = export_onnx(actor, args.onnx, {"policy_name": getattr(policy, "name", args.policy),
+                                          "source_policy": args.policy})
+    print(f"wrote {path} ({path.stat().st_size / 1024:.1f} KiB)")
+    if args.check_states == 0:
+        return 0
+    report = check_parity(actor, path, random_states(args.check_states))
+    print(f"parity over {report['states']} random states: max |onnx - torch| = {report['max_abs_diff']:.2e} "
+          f"(allowed {report['tolerance']:.0e})")
+    print(f"one inference step: onnxruntime {report['onnxruntime_step']['median_us']:.0f} us "
+          f"(p99 {report['onnxruntime_step']['p99_us']:.0f}), torch {report['torch_step']['median_us']:.0f} us "
+          f"(p99 {report['torch_step']['p99_us']:.0f}), one thread")
+    if args.json:
+        write_json(args.json, {"onnx": str(path), "policy": args.policy, **report})
+    if not report["passed"]:
+        print("parity check FAILED")
+        return 1
+    return 0

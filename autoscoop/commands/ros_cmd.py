@@ -1,0 +1,159 @@
+"""``autoscoop ros controller|sim``: the controller as a ROS 1 node, and the simulator behind the same topics.
+
+Both need a running ``rosmaster`` (``ROS_MASTER_URI``) and ROS 1 from Debian's packages. Topic names
+are relative: remap them with ``name:=new`` after the options, as with any ROS node, e.g.
+``autoscoop ros controller --policy default joint_states:=/komodo/joint_states``.
+
+The controller is not a substitute for the robot's hardware emergency stop.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+from pathlib import Path
+
+from autoscoop.commands import add_config_args, config_from_args, write_json
+from autoscoop.config import ConfigError, ScoopConfig, parse_set_args
+
+
+def register(subparsers: argparse._SubParsersAction) -> None:
+    parser = subparsers.add_parser("ros", help="ROS 1 nodes: the controller on the robot, the simulator behind its topics",
+                                   description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    nodes = parser.add_subparsers(dest="node", metavar="NODE")
+
+    controller = nodes.add_parser("controller", help="run a policy on the robot's topics, with watchdog and limits",
+                                  description=_CONTROLLER_DOC, formatter_class=argparse.RawDescriptionHelpFormatter)
+    controller.add_argument("--policy", default="default",
+                            help="default (shipped policy), heuristic, a .onnx file (onnxruntime only) or a policy file")
+    controller.add_argument("--config", type=Path, help="the robot's YAML: limits, timeouts, calibration, topics")
+    controller.add_argument("--record", type=Path, metavar="DIR", help="write one episode record per scoop here")
+    controller.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
+                            help="scene/task config the policy was made for, e.g. --set pile.angle_deg=28 (labels "
+                                 "the records; the heuristic aims at reward.terminal_*)")
+    controller.add_argument("--trust", action="store_true", help="allow a pickled SB3 zip as the policy")
+    controller.add_argument("--check", action="store_true",
+                            help="check the configuration and the policy, print them, and exit without ROS")
+    controller.add_argument("remap", nargs="*", metavar="NAME:=NEW", help="ROS remappings and private parameters")
+    controller.set_defaults(func=run_controller)
+
+    sim = nodes.add_parser("sim", help="the MuJoCo scene behind the robot's topics (like Gazebo)",
+                           description=_SIM_DOC, formatter_class=argparse.RawDescriptionHelpFormatter)
+    sim.add_argument("--episodes", type=int, default=0, help="episodes to run, then exit (default 0: until stopped)")
+    sim.add_argument("--seed", type=int, default=0, help="seed of the first episode (as in autoscoop eval)")
+    sim.add_argument("--json", type=Path, help="write the summary (as autoscoop eval does) to this JSON file")
+    sim.add_argument("--delay-s", type=float, default=0.0, help="delay of every sensor message, s (default 0)")
+    sim.add_argument("--joint-noise-rad", type=float, default=0.0, help="noise (std) on the joint angles, rad")
+    sim.add_argument("--speed-noise-mps", type=float, default=0.0, help="noise (std) on the odometry speed, m/s")
+    sim.add_argument("--range-noise-m", type=float, default=0.0, help="noise (std) on the range to the pile, m")
+    sim.add_argument("--torque-noise-nm", type=float, default=0.0, help="noise (std) on the bucket torque, N*m")
+    sim.add_argument("--robot-config", type=Path,
+                     help="the robot's YAML: topic and joint names, and potentiometer calibration (raw readings)")
+    sim.add_argument("--label", help="policy name for the summary (default: the controller's ~policy parameter)")
+    sim.add_argument("--wait-s", type=float, default=60.0, help="give up when no controller appears within this long")
+    add_config_args(sim)
+    sim.add_argument("remap", nargs="*", metavar="NAME:=NEW", help="ROS remappings")
+    sim.set_defaults(func=run_sim)
+    parser.set_defaults(func=lambda args: parser.print_help() or 2)
+
+
+_CONTROLLER_DOC = """Run a policy on the robot through ROS 1.
+
+Subscribes: joint_states (sensor_msgs/JointState: lift, tilt), odom (nav_msgs/Odometry), pile_range
+(sensor_msgs/Range), bucket_torque (std_msgs/Float64), estop (std_msgs/Bool), scoop (std_msgs/Bool:
+true starts a scoop, false ends it). Publishes: cmd_vel (geometry_msgs/Twist), lift_controller/command
+and tilt_controller/command (std_msgs/Float64, rad), ~status (std_msgs/String).
+
+Every command is clamped to the configured limits. Any input older than control.input_timeout_s, or
+not finite, or out of range -> zero velocity and the arm held, until the inputs are healthy again;
+estop true -> the same until estop false. Not a substitute for the hardware emergency stop.
+"""
+
+_SIM_DOC = """The simulator as a ROS 1 node: publishes joint_states, odom, pile_range and bucket_torque (with
+noise and delay as configured) in real time, obeys cmd_vel and the joint commands, and starts each
+episode on the scoop topic. --episodes N --json OUT writes the summary of `autoscoop eval`.
+"""
+
+
+def _check_remaps(remaps: list[str]) -> None:
+    bad = [r for r in remaps if ":=" not in r]
+    if bad:
+        raise SystemExit(f"unexpected argument(s) {bad}: only ROS remappings NAME:=NEW may follow the options")
+
+
+def build_controller(args: argparse.Namespace):  # noqa: ANN201 - ControllerCore, imported lazily
+    """The checked controller core from the command line (no ROS needed)."""
+    from autoscoop.agents.loading import load_policy  # noqa: PLC0415
+    from autoscoop.deploy.controller import ControllerCore  # noqa: PLC0415
+    from autoscoop.deploy.robot_config import load_robot_config  # noqa: PLC0415
+
+    robot = load_robot_config(args.config)
+    task = ScoopConfig().with_overrides({**parse_set_args(args.overrides),
+                                         "env.control_period_s": robot.control.control_period_s})
+    policy = load_policy(args.policy, task, trust=args.trust)
+    return ControllerCore(robot, policy, task, record_dir=args.record, policy_name=args.policy)
+
+
+def run_controller(args: argparse.Namespace) -> int:
+    _check_remaps(args.remap)
+    try:
+        core = build_controller(args)
+    except ConfigError as error:
+        raise ConfigError(f"controller not started: {error}") from None
+    if args.check:
+        print(core.config.describe())
+        print(f"policy: {core.policy_name} ({type(core.policy).__name__}); configuration OK")
+        return 0
+    from autoscoop.deploy.ros1 import RosUnavailable  # noqa: PLC0415
+
+    try:
+        from autoscoop.deploy.ros1.controller_node import run_controller_node  # noqa: PLC0415
+
+        return run_controller_node(core)
+    except RosUnavailable as error:
+        print(f"autoscoop ros controller: error: {error}")
+        return 2
+
+
+def run_sim(args: argparse.Namespace) -> int:
+    _check_remaps(args.remap)
+    if args.episodes < 0:
+        raise SystemExit(f"--episodes must be 0 (until stopped) or more, got {args.episodes}")
+    if not (math.isfinite(args.delay_s) and 0.0 <= args.delay_s <= 5.0):
+        raise SystemExit(f"--delay-s must be in [0, 5] s, got {args.delay_s}")
+    from autoscoop.deploy.robot_config import load_robot_config  # noqa: PLC0415
+    from autoscoop.deploy.ros1 import RosUnavailable  # noqa: PLC0415
+    from autoscoop.deploy.sim_bridge import SensorNoise, SimBridge  # noqa: PLC0415
+    from autoscoop.evaluate import format_table, summarize  # noqa: PLC0415
+
+    config = config_from_args(args)
+    noise = SensorNoise(joint_rad=args.joint_noise_rad, speed_mps=args.speed_noise_mps, range_m=args.range_noise_m,
+                        torque_nm=args.torque_noise_nm)
+    bridge = SimBridge(config, noise, load_robot_config(args.robot_config), seed=args.seed)
+    try:
+        from autoscoop.deploy.ros1.sim_node import run_sim_node  # noqa: PLC0415
+
+        results, stats = run_sim_node(bridge, args.episodes, seed=args.seed, delay_s=args.delay_s,
+                                      wait_for_controller_s=args.wait_s)
+        label = args.label or stats.controller_policy or "ros controller"
+    except RosUnavailable as error:
+        print(f"autoscoop ros sim: error: {error}")
+        return 2
+    except TimeoutError as error:
+        print(f"autoscoop ros sim: error: {error}")
+        return 1
+    finally:
+        bridge.close()
+    if not results:
+        print("no episode finished")
+        return 1
+    summary = summarize(results, config, label)
+    summary["ros"] = {"sensor_period_s": bridge.sensor_period_s, "delay_s": args.delay_s,
+                      "noise": vars(noise), **stats.as_dict()}
+    print(format_table(summary))
+    print(f"real-time factor {summary['ros']['real_time_factor']:.2f}, late steps {stats.late_steps}")
+    if args.json:
+        write_json(args.json, summary)
+        print(f"wrote {args.json}")
+    return 0
+

@@ -1,0 +1,145 @@
+"""Export a torch actor to ONNX, with its input and output scaling, and check it against torch.
+
+The exported graph maps the raw 12-number state (``state``, float32, any batch size) to the action
+in [-1, 1] (``action``): whatever the actor does to its input (the fixed state normalisation of
+:class:`autoscoop.agents.networks.PaperActor`) and to its output (tanh) is inside the module, so it
+is inside the file. :class:`autoscoop.deploy.onnx_policy.OnnxPolicy` runs the file with onnxruntime
+alone. The export uses torch's TorchScript-based exporter (``dynamo=False``), which needs nothing
+beyond torch and onnx.
+"""
+
+from __future__ import annotations
+
+import copy
+import time
+import warnings
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from autoscoop import __version__
+from autoscoop.deploy.onnx_policy import INPUT_NAME, ONNX_FORMAT, OUTPUT_NAME, OnnxPolicy
+from autoscoop.state import ACTION_NAMES, STATE_NAMES, STATE_SIZE
+
+OPSET = 17
+"""ONNX opset: 17 has LayerNormalization as one operator."""
+PARITY_TOLERANCE = 1e-5
+"""Largest allowed |onnx - torch| of any action component."""
+
+
+def export_onnx(actor: Any, path: str | Path, metadata: dict[str, Any] | None = None) -> Path:
+    """Write ``actor`` (a torch ``nn.Module``: raw state (n, 12) -> action (n, 3)) as an ONNX policy.
+
+    Args:
+        actor: the module; copied to the CPU in float32 and put in eval mode (the original is untouched).
+        path: the ``.onnx`` file to write.
+        metadata: extra string entries for the file's metadata (e.g. the source policy).
+
+    Returns:
+        The path written.
+    """
+    import onnx  # noqa: PLC0415
+    import torch  # noqa: PLC0415
+
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    module = copy.deepcopy(actor).to("cpu").float().eval()
+    example = torch.zeros(1, STATE_SIZE, dtype=torch.float32)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", DeprecationWarning)  # the TorchScript exporter's notice
+        torch.onnx.export(module, (example,), str(path), input_names=[INPUT_NAME], output_names=[OUTPUT_NAME],
+                          dynamic_axes={INPUT_NAME: {0: "batch"}, OUTPUT_NAME: {0: "batch"}},
+                          opset_version=OPSET, dynamo=False)
+    model = onnx.load(str(path))
+    entries = {"autoscoop_format": ONNX_FORMAT, "autoscoop_version": __version__,
+               "state_names": ",".join(STATE_NAMES), "action_names": ",".join(ACTION_NAMES),
+               "input": f"{INPUT_NAME}: raw state (batch, {STATE_SIZE}) float32, autoscoop.state order",
+               "output": f"{OUTPUT_NAME}: (batch, {len(ACTION_NAMES)}) in [-1, 1]",
+               **{str(k): str(v) for k, v in (metadata or {}).items()}}
+    del model.metadata_props[:]
+    for key, value in entries.items():
+        model.metadata_props.add(key=key, value=value)
+    onnx.checker.check_model(model)
+    onnx.save(model, str(path))
+    return path
+
+
+def random_states(n: int, seed: int = 0) -> np.ndarray:
+    """``n`` random states (n, 12) float32 over the robot's workspace, in :data:`STATE_NAMES` order.
+
+    Joint angles uniform over their ranges (tip and bucket joint from the arm's kinematics, as
+    :func:`autoscoop.state.build_state` computes them), mass 0-10 kg over the 7 kg rated load,
+    0-1.2 m to the pile, +-0.1 m/s, and the changes within one step's reach.
+    """
+    from autoscoop import kinematics  # noqa: PLC0415
+
+    rng = np.random.default_rng(seed)
+    lift = rng.uniform(*kinematics.LIFT_RANGE_RAD, n)
+    tilt = rng.uniform(*kinematics.TILT_RANGE_RAD, n)
+    pose = kinematics.arm_pose(lift, tilt)
+    return np.column_stack([
+        rng.uniform(0.0, 10.0 / 7.0, n), pose.tip[:, 0], pose.tip[:, 1], pose.bucket_joint[:, 0],
+        pose.bucket_joint[:, 1], rng.uniform(0.0, 1.2, n), rng.uniform(-0.1, 0.1, n), lift, tilt,
+        rng.uniform(-0.05, 0.05, n), rng.uniform(-0.1, 0.1, n), rng.uniform(-0.25, 0.25, n),
+    ]).astype(np.float32)
+
+
+def check_parity(actor: Any, onnx_path: str | Path, states: np.ndarray, timing_steps: int = 2000) -> dict[str, Any]:
+    """Compare the ONNX file with the torch actor on ``states``; time one step of each.
+
+    Args:
+        actor: the torch module that was exported.
+        onnx_path: the exported file.
+        states: (n, 12) states to compare on.
+        timing_steps: single-state calls timed for each runtime.
+
+    Returns:
+        ``max_abs_diff`` (over all states and action components), ``states``, ``passed``
+        (``max_abs_diff <= PARITY_TOLERANCE``), and per-step inference times in microseconds
+        (median and 99th percentile) for onnxruntime (1 thread) and torch.
+    """
+    import torch  # noqa: PLC0415
+
+    module = copy.deepcopy(actor).to("cpu").float().eval()
+    policy = OnnxPolicy(onnx_path)
+    states = np.asarray(states, dtype=np.float32)
+    with torch.no_grad():
+        expected = module(torch.as_tensor(states)).numpy()
+    got = policy.act_batch(states)
+    diff = float(np.max(np.abs(got.astype(np.float64) - expected.astype(np.float64))))
+
+    def timed(fn) -> dict[str, float]:
+        times = np.empty(timing_steps)
+        for k in range(timing_steps):
+            state = states[k % len(states)]
+            start = time.perf_counter()
+            fn(state)
+            times[k] = time.perf_counter() - start
+        return {"median_us": float(np.median(times) * 1e6), "p99_us": float(np.percentile(times, 99) * 1e6)}
+
+    def torch_step(state: np.ndarray) -> np.ndarray:
+        with torch.no_grad():
+            return module(torch.as_tensor(state).reshape(1, -1))[0].numpy()
+
+    threads = torch.get_num_threads()
+    torch.set_num_threads(1)
+    try:
+        for fn in (policy.act, torch_step):  # warm up
+            fn(states[0])
+        onnx_time, torch_time = timed(policy.act), timed(torch_step)
+    finally:
+        torch.set_num_threads(threads)
+    return {"states": int(len(states)), "max_abs_diff": diff, "tolerance": PARITY_TOLERANCE,
+            "passed": bool(diff <= PARITY_TOLERANCE), "onnxruntime_step": onnx_time, "torch_step": torch_time}
+
+
+def exportable_actor(policy: Any) -> Any:
+    """The torch module behind a loaded policy (``policy.actor``), or a ``ValueError`` saying why not."""
+    import torch  # noqa: PLC0415
+
+    actor = getattr(policy, "actor", None)
+    if not isinstance(actor, torch.nn.Module):
+        raise ValueError(f"policy {getattr(policy, 'name', policy)!r} has no neural network to export (the heuristic "
+                         "is a script); export a trained policy: default, a .safetensors file or a run directory")
+    return actor

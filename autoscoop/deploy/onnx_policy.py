@@ -1,0 +1,72 @@
+"""Run an exported actor (``autoscoop export --onnx``) with onnxruntime alone: no torch on the robot.
+
+The file maps the raw 12-number state (float32, ``state``) to the 3-number action in [-1, 1]
+(``action``); its input and output scaling are inside the graph. :class:`OnnxPolicy` offers the
+:class:`~autoscoop.agents.base.Policy` interface, so evaluation, the demo and the ROS controller run
+it like any other controller.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from autoscoop.state import ACTION_NAMES, ACTION_SIZE, STATE_NAMES, STATE_SIZE
+
+ONNX_FORMAT = "autoscoop-onnx-policy/1"
+"""Value of the ``autoscoop_format`` metadata entry of an exported policy."""
+INPUT_NAME = "state"
+OUTPUT_NAME = "action"
+
+
+class OnnxPolicy:
+    """A policy from an exported ONNX actor (stateless: ``reset`` does nothing).
+
+    Args:
+        path: the ``.onnx`` file.
+        threads: onnxruntime's intra-op threads (1: the robot's computer runs other nodes too).
+
+    Raises:
+        ValueError: if the file is not an autoscoop policy (wrong inputs, outputs or metadata).
+    """
+
+    def __init__(self, path: str | Path, threads: int = 1) -> None:
+        import onnxruntime as ort  # noqa: PLC0415 - only the robot's deploy extra needs it
+
+        self.path = Path(path)
+        if not self.path.is_file():
+            raise ValueError(f"ONNX policy {self.path}: no such file")
+        options = ort.SessionOptions()
+        options.intra_op_num_threads = threads
+        options.inter_op_num_threads = 1
+        options.log_severity_level = 3
+        try:
+            self.session = ort.InferenceSession(str(self.path), options, providers=["CPUExecutionProvider"])
+        except Exception as error:  # onnxruntime raises its own exception types
+            raise ValueError(f"ONNX policy {self.path}: cannot be loaded ({error})") from None
+        self.metadata = dict(self.session.get_modelmeta().custom_metadata_map)
+        if self.metadata.get("autoscoop_format") != ONNX_FORMAT:
+            raise ValueError(f"ONNX policy {self.path}: not an autoscoop policy export (metadata autoscoop_format "
+                             f"is {self.metadata.get('autoscoop_format')!r}, expected {ONNX_FORMAT!r}); "
+                             "write it with `autoscoop export --onnx`")
+        inputs, outputs = self.session.get_inputs(), self.session.get_outputs()
+        if [i.name for i in inputs] != [INPUT_NAME] or inputs[0].shape[-1] != STATE_SIZE:
+            raise ValueError(f"ONNX policy {self.path}: expected one input {INPUT_NAME!r} of {STATE_SIZE} numbers "
+                             f"({', '.join(STATE_NAMES)}), got {[(i.name, i.shape) for i in inputs]}")
+        if [o.name for o in outputs] != [OUTPUT_NAME] or outputs[0].shape[-1] != ACTION_SIZE:
+            raise ValueError(f"ONNX policy {self.path}: expected one output {OUTPUT_NAME!r} of {ACTION_SIZE} numbers "
+                             f"({', '.join(ACTION_NAMES)}), got {[(o.name, o.shape) for o in outputs]}")
+        self.name = self.metadata.get("policy_name") or self.path.stem
+
+    def reset(self) -> None:
+        """Nothing to forget: the actor is a function of the state."""
+
+    def act(self, observation: np.ndarray) -> np.ndarray:
+        """The action (drive, lift, tilt) in [-1, 1] for one state."""
+        state = np.asarray(observation, dtype=np.float32).reshape(1, STATE_SIZE)
+        return self.session.run(None, {INPUT_NAME: state})[0][0]
+
+    def act_batch(self, states: np.ndarray) -> np.ndarray:
+        """Actions (n, 3) for states (n, 12)."""
+        return self.session.run(None, {INPUT_NAME: np.asarray(states, dtype=np.float32).reshape(-1, STATE_SIZE)})[0]

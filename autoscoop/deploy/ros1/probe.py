@@ -1,0 +1,202 @@
+"""A stand-in robot on the controller's topics: publishes sensor messages, records the commands.
+
+For tests and benchmarks of ``autoscoop ros controller`` (watchdog latency, estop, fuzzed
+messages): it plays the robot's sensors at a fixed rate with values one can change or stop per
+topic, or replace by arbitrary messages, and timestamps every command it receives on its own
+monotonic clock. Call :func:`rospy.init_node` before building it.
+"""
+
+from __future__ import annotations
+
+import math
+import threading
+import time
+from dataclasses import dataclass
+from typing import Any, Callable
+
+from autoscoop.deploy.ros1 import import_rospy
+from autoscoop.deploy.robot_config import TopicsSection
+
+SENSOR_TOPICS = ("joint_states", "odom", "pile_range", "bucket_torque")
+
+
+@dataclass(frozen=True)
+class Received:
+    """One command as the probe received it: its arrival time (monotonic s), topic and value."""
+
+    time_s: float
+    topic: str
+    value: float
+
+
+class RobotProbe:
+    """Publishes the robot's sensors at ``rate_hz`` and records the controller's commands.
+
+    Args:
+        rate_hz: sensor publication rate.
+        topics: topic names (the controller's defaults).
+        lift_rad, tilt_rad, speed_mps, range_m, torque_nm: the readings published.
+    """
+
+    def __init__(self, rate_hz: float = 50.0, topics: TopicsSection | None = None, lift_rad: float = 0.23,
+                 tilt_rad: float = 0.0, speed_mps: float = 0.0, range_m: float = 0.3, torque_nm: float = -1.0) -> None:
+        rospy = self.rospy = import_rospy()
+        from geometry_msgs.msg import Twist  # noqa: PLC0415
+        from nav_msgs.msg import Odometry  # noqa: PLC0415
+        from sensor_msgs.msg import JointState, Range  # noqa: PLC0415
+        from std_msgs.msg import Bool, Float64  # noqa: PLC0415
+
+        self.msg = {"JointState": JointState, "Odometry": Odometry, "Range": Range, "Float64": Float64,
+                    "Bool": Bool, "Twist": Twist}
+        topics = topics or TopicsSection()
+        self.period_s = 1.0 / rate_hz
+        self.values = {"lift": lift_rad, "tilt": tilt_rad, "speed": speed_mps, "range": range_m, "torque": torque_nm}
+        self.enabled = {name: True for name in SENSOR_TOPICS}
+        self.last_published: dict[str, float] = {}
+        self.custom: dict[str, Callable[[], Any]] = {}
+        """Per topic, a function that returns the next message to publish instead of the normal one."""
+        self.received: list[Received] = []
+        self._lock = threading.Lock()
+        self._stop = threading.Event()
+        self.publishers = {
+            "joint_states": rospy.Publisher(topics.joint_states, JointState, queue_size=20, tcp_nodelay=True),
+            "odom": rospy.Publisher(topics.odom, Odometry, queue_size=20, tcp_nodelay=True),
+            "pile_range": rospy.Publisher(topics.pile_range, Range, queue_size=20, tcp_nodelay=True),
+            "bucket_torque": rospy.Publisher(topics.bucket_torque, Float64, queue_size=20, tcp_nodelay=True),
+            "estop": rospy.Publisher(topics.estop, Bool, queue_size=10, tcp_nodelay=True),
+            "scoop": rospy.Publisher(topics.scoop, Bool, queue_size=10, tcp_nodelay=True),
+        }
+        self.subscribers = [
+            rospy.Subscriber(topics.cmd_vel, Twist, self._record("cmd_vel", lambda m: m.linear.x), tcp_nodelay=True),
+            rospy.Subscriber(topics.lift_command, Float64, self._record("lift", lambda m: m.data), tcp_nodelay=True),
+            rospy.Subscriber(topics.tilt_command, Float64, self._record("tilt", lambda m: m.data), tcp_nodelay=True),
+        ]
+        self._thread = threading.Thread(target=self._run, name="robot-probe", daemon=True)
+        self._thread.start()
+
+    # ---------------------------------------------------------------- publishing
+    def normal_message(self, topic: str) -> Any:
+        """The message ``topic`` carries with the current values."""
+        v, stamp = self.values, self.rospy.Time.now()
+        if topic == "joint_states":
+            msg = self.msg["JointState"](name=["lift", "tilt"], position=[v["lift"], v["tilt"]])
+        elif topic == "odom":
+            msg = self.msg["Odometry"]()
+            msg.twist.twist.linear.x = v["speed"]
+        elif topic == "pile_range":
+            msg = self.msg["Range"](min_range=0.0, max_range=4.0, range=v["range"])
+        else:
+            return self.msg["Float64"](v["torque"])
+        msg.header.stamp = stamp
+        return msg
+
+    def _run(self) -> None:
+        tick = time.monotonic()
+        while not self._stop.is_set() and not self.rospy.is_shutdown():
+            for topic in SENSOR_TOPICS:
+                if not self.enabled[topic]:
+                    continue
+                make = self.custom.get(topic)
+                self.publishers[topic].publish(make() if make else self.normal_message(topic))
+                self.last_published[topic] = time.monotonic()
+            tick += self.period_s
+            time.sleep(max(0.0, tick - time.monotonic()))
+
+    def publish(self, topic: str, message: Any) -> float:
+        """Publish one message on ``estop``, ``scoop`` or a sensor topic; the monotonic time it was sent."""
+        self.publishers[topic].publish(message)
+        return time.monotonic()
+
+    def wait_for_controller(self, timeout_s: float = 30.0) -> None:
+        """Wait until the controller is connected to every topic (both ways)."""
+        deadline = time.monotonic() + timeout_s
+        while time.monotonic() < deadline:
+            if all(p.get_num_connections() > 0 for p in self.publishers.values()) and \
+                    all(s.get_num_connections() > 0 for s in self.subscribers):
+                return
+            time.sleep(0.05)
+        raise TimeoutError("the controller did not connect to the probe's topics")
+
+    # ---------------------------------------------------------------- commands
+    def _record(self, topic: str, value: Callable[[Any], float]) -> Callable[[Any], None]:
+        def callback(msg: Any) -> None:
+            now = time.monotonic()
+            with self._lock:
+                self.received.append(Received(now, topic, float(value(msg))))
+        return callback
+
+    def commands(self, topic: str, since: float = -math.inf) -> list[Received]:
+        """Commands received on ``cmd_vel``, ``lift`` or ``tilt`` at or after ``since``."""
+        with self._lock:
+            return [r for r in self.received if r.topic == topic and r.time_s >= since]
+
+    def wait_for_command(self, topic: str, predicate: Callable[[float], bool], since: float,
+                         timeout_s: float = 5.0) -> Received | None:
+        """The first command on ``topic`` after ``since`` whose value satisfies ``predicate`` (None on timeout)."""
+        deadline = time.monotonic() + timeout_s
+        while time.monotonic() < deadline:
+            for r in self.commands(topic, since):
+                if predicate(r.value):
+                    return r
+            time.sleep(0.002)
+        return None
+
+    def close(self) -> None:
+        """Stop publishing and unsubscribe."""
+        self._stop.set()
+        self._thread.join(timeout=2)
+        for s in self.subscribers:
+            s.unregister()
+        for p in self.publishers.values():
+            p.unregister()
+
+
+# -------------------------------------------------------------------- latency trials
+def _start_moving(probe: RobotProbe, timeout_s: float = 3.0) -> None:
+    """Start a scoop and wait until the controller drives forward."""
+    sent = probe.publish("scoop", probe.msg["Bool"](True))
+    if probe.wait_for_command("cmd_vel", lambda v: v > 0.0, since=sent, timeout_s=timeout_s) is None:
+        raise RuntimeError("the controller did not start driving after scoop=true")
+
+
+def watchdog_trial(probe: RobotProbe, phase_s: float, timeout_s: float = 3.0) -> float:
+    """Stop ``joint_states`` while the robot drives; seconds from the last message to a zero ``cmd_vel``.
+
+    Args:
+        probe: the stand-in robot, connected to a running controller.
+        phase_s: wait this long after the robot starts driving before stopping (spreads the stop over
+            the control period).
+        timeout_s: give up after this long without a zero command.
+    """
+    _start_moving(probe)
+    time.sleep(phase_s)
+    probe.enabled["joint_states"] = False
+    stopped = time.monotonic()
+    time.sleep(2 * probe.period_s)  # the publishing thread finishes a round that may have begun
+    last = probe.last_published["joint_states"]
+    zero = probe.wait_for_command("cmd_vel", lambda v: v == 0.0, since=min(last, stopped), timeout_s=timeout_s)
+    probe.enabled["joint_states"] = True
+    if zero is None:
+        raise RuntimeError(f"no zero cmd_vel within {timeout_s} s of stopping joint_states")
+    return zero.time_s - last
+
+
+def estop_trial(probe: RobotProbe, phase_s: float, timeout_s: float = 3.0) -> float:
+    """Engage ``estop`` while the robot drives; seconds to a zero ``cmd_vel``; releases it again."""
+    _start_moving(probe)
+    time.sleep(phase_s)
+    sent = probe.publish("estop", probe.msg["Bool"](True))
+    zero = probe.wait_for_command("cmd_vel", lambda v: v == 0.0, since=sent, timeout_s=timeout_s)
+    probe.publish("estop", probe.msg["Bool"](False))
+    if zero is None:
+        raise RuntimeError(f"no zero cmd_vel within {timeout_s} s of estop")
+    return zero.time_s - sent
+
+
+def latency_summary(values: list[float]) -> dict[str, float]:
+    """Median, 99th percentile, max and count of latencies, s."""
+    import numpy as np  # noqa: PLC0415
+
+    a = np.asarray(values, dtype=float)
+    return {"n": int(len(a)), "median_s": float(np.median(a)), "p99_s": float(np.percentile(a, 99)),
+            "max_s": float(a.max()), "min_s": float(a.min())}

@@ -1,0 +1,248 @@
+"""The simulator behind the robot's topics, free of ROS: commands in, sensor readings out, per physics step.
+
+:class:`SimBridge` runs the scoop environment (:class:`autoscoop.envs.scoop.ScoopEnv`) with its
+control period shortened to the sensor period (one or a few physics steps, about 48 Hz) and turns
+each received command into the environment's action: the targets jump to the commanded speed and
+joint positions, and the lift and tilt servos move toward them at the actuators' speed, as on the
+robot. Each step yields the readings the robot's sensors give (joint positions, wheel-odometry
+speed, range from the tip to the pile, bucket torque), with Gaussian noise, and the episode ends as
+in evaluation (success or the time limit), with the same metrics.
+"""
+
+from __future__ import annotations
+
+import heapq
+import itertools
+import math
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from autoscoop.config import ScoopConfig
+from autoscoop.deploy.robot_config import RobotNodeConfig
+from autoscoop.envs.scoop import make_scoop_env
+from autoscoop.evaluate import EpisodeResult
+from autoscoop.state import CommandLimits
+
+MIN_SENSOR_PERIOD_S = 0.02
+"""Sensors are published at most this often: every physics step, or every few when steps are shorter."""
+
+
+@dataclass(frozen=True)
+class SensorNoise:
+    """Standard deviations of the Gaussian noise on each published reading.
+
+    Attributes:
+        joint_rad: on each joint angle, rad (before conversion to a raw reading).
+        speed_mps: on the odometry speed, m/s.
+        range_m: on the range to the pile, m (the result is kept >= 0).
+        torque_nm: on the bucket torque, N*m.
+    """
+
+    joint_rad: float = 0.0
+    speed_mps: float = 0.0
+    range_m: float = 0.0
+    torque_nm: float = 0.0
+
+    def __post_init__(self) -> None:
+        for name in ("joint_rad", "speed_mps", "range_m", "torque_nm"):
+            value = getattr(self, name)
+            if not (math.isfinite(value) and 0.0 <= value <= 10.0):
+                raise ValueError(f"noise {name} = {value} must be a finite number in [0, 10]")
+
+
+@dataclass(frozen=True)
+class SensorReadings:
+    """What the robot's sensors report after one step (noise included).
+
+    Attributes:
+        time_s: simulated time since the episode's start, s.
+        joint_names: names in ``joint_states`` (lift, tilt).
+        joint_positions: lift and tilt readings: rad, or raw where the robot config calibrates a potentiometer.
+        speed_mps: forward speed from wheel odometry, m/s.
+        range_m: distance from the bucket tip to the pile, m.
+        torque_nm: torque at the tilt (bucket) joint, N*m.
+        chassis_xyz_m: chassis centre in the world (pile) frame, m (for the odometry pose).
+        chassis_quat_wxyz: chassis orientation, unit quaternion (w, x, y, z).
+    """
+
+    time_s: float
+    joint_names: tuple[str, str]
+    joint_positions: tuple[float, float]
+    speed_mps: float
+    range_m: float
+    torque_nm: float
+    chassis_xyz_m: tuple[float, float, float]
+    chassis_quat_wxyz: tuple[float, float, float, float]
+
+
+class SimBridge:
+    """The scoop simulator driven by position and speed commands, read through the robot's sensors.
+
+    Args:
+        config: the scene (pile, robot limits, episode length).
+        noise: sensor noise.
+        robot: the robot's node config: joint names and potentiometer calibration of the readings
+            (default: joints ``lift``/``tilt`` in radians).
+        seed: seed of the noise.
+    """
+
+    def __init__(self, config: ScoopConfig | None = None, noise: SensorNoise | None = None,
+                 robot: RobotNodeConfig | None = None, seed: int = 0) -> None:
+        config = config or ScoopConfig()
+        self.task_config = config
+        timestep = config.env.timestep_s
+        self.sensor_period_s = timestep * max(1, math.ceil(MIN_SENSOR_PERIOD_S / timestep - 1e-9))
+        self.config = config.with_overrides({"env.control_period_s": self.sensor_period_s})
+        self.env = make_scoop_env(self.config)
+        self.noise = noise or SensorNoise()
+        self.robot = robot or RobotNodeConfig()
+        self.rng = np.random.default_rng(seed)
+        self.limits = CommandLimits(max_speed_mps=config.robot.max_speed_mps)
+        self._span = self.limits.high - self.limits.low
+        self._targets = np.zeros(3)
+        self._info: dict[str, Any] = {}
+        self.seed = 0
+        self.steps = 0
+        self.done = True
+
+    @property
+    def start_command(self) -> np.ndarray:
+        """(speed, lift, tilt) the robot holds at an episode's start: still, arm in the start pose."""
+        robot = self.config.robot
+        return np.array([0.0, robot.start_lift_rad, robot.start_tilt_rad])
+
+    def reset(self, seed: int) -> SensorReadings:
+        """A new episode (the scene reset, a fresh settled pile) from ``seed``; its first readings."""
+        _, self._info = self.env.reset(seed=seed)
+        self._targets = self.start_command
+        self.seed, self.steps, self.done = seed, 0, False
+        return self.readings()
+
+    def step(self, command: np.ndarray) -> SensorReadings:
+        """Advance one sensor period under ``command`` = (speed m/s, lift rad, tilt rad); the new readings.
+
+        The targets become the command (clipped to the limits); the servos move toward them at their
+        speed. After the episode ends, further steps do nothing.
+        """
+        if self.done:
+            return self.readings()
+        desired = np.clip(np.asarray(command, dtype=float), self.limits.low, self.limits.high)
+        desired = np.where(np.isfinite(desired), desired, self._targets)
+        action = np.clip((desired - self._targets) / self._span, -1.0, 1.0)
+        self._targets = np.clip(self._targets + action * self._span, self.limits.low, self.limits.high)
+        _, _, terminated, truncated, self._info = self.env.step(action)
+        self.steps += 1
+        self.done = bool(terminated or truncated)
+        return self.readings()
+
+    def readings(self) -> SensorReadings:
+        """The sensors' view of the scene now, with noise."""
+        sim, info, noise, rng = self.env.unwrapped.sim, self._info, self.noise, self.rng
+        positions = []
+        for joint, angle in (("lift", sim.lift_rad), ("tilt", sim.tilt_rad)):
+            angle = angle + (rng.normal(0.0, noise.joint_rad) if noise.joint_rad else 0.0)
+            pot = self.robot.potentiometer(joint)
+            positions.append(pot.to_raw(angle) if pot is not None else angle)
+        speed = sim.odometry_speed_mps + (rng.normal(0.0, noise.speed_mps) if noise.speed_mps else 0.0)
+        distance = float(info.get("tip_to_pile_m", math.nan))
+        if noise.range_m and math.isfinite(distance):
+            distance = max(0.0, distance + rng.normal(0.0, noise.range_m))
+        torque = sim.tilt_torque_nm + (rng.normal(0.0, noise.torque_nm) if noise.torque_nm else 0.0)
+        position, rotation = sim.chassis_pose
+        quat = np.empty(4)
+        import mujoco  # noqa: PLC0415 - already loaded by the simulator
+
+        mujoco.mju_mat2Quat(quat, rotation.reshape(-1))
+        return SensorReadings(
+            time_s=sim.elapsed_s, joint_names=(self.robot.sensors.lift_joint, self.robot.sensors.tilt_joint),
+            joint_positions=(float(positions[0]), float(positions[1])), speed_mps=float(speed), range_m=distance,
+            torque_nm=float(torque), chassis_xyz_m=tuple(float(v) for v in position),
+            chassis_quat_wxyz=tuple(float(v) for v in quat))
+
+    def result(self) -> EpisodeResult:
+        """The episode's metrics, as ``autoscoop eval`` reports them (``steps`` in control periods)."""
+        info = self._info
+        period = self.task_config.env.control_period_s
+        return EpisodeResult(
+            seed=self.seed, fill_factor=float(info.get("fill_factor", 0.0)),
+            mass_kg=float(info.get("mass_in_bucket_kg", 0.0)), particles=int(info.get("particles_in_bucket", 0)),
+            success=bool(info.get("success", False)), cycle_time_s=float(info.get("cycle_time_s", math.nan)),
+            spilled=int(info.get("spilled", 0)), physics_error=bool(info.get("physics_error", False)),
+            steps=int(round(float(info.get("elapsed_s", 0.0)) / period)), episode_return=math.nan)
+
+    def close(self) -> None:
+        """Free the simulator."""
+        self.env.close()
+
+
+class DelayLine:
+    """Items that come out ``delay_s`` after they went in, in order: a sensor's transport delay."""
+
+    def __init__(self, delay_s: float) -> None:
+        if not (math.isfinite(delay_s) and delay_s >= 0.0):
+            raise ValueError(f"delay must be a finite number of seconds >= 0, got {delay_s}")
+        self.delay_s = float(delay_s)
+        self._heap: list[tuple[float, int, Any]] = []
+        self._count = itertools.count()
+
+    def push(self, now: float, item: Any) -> None:
+        """Put ``item`` in at ``now``."""
+        heapq.heappush(self._heap, (now + self.delay_s, next(self._count), item))
+
+    def pop_due(self, now: float) -> list[Any]:
+        """Every item whose time has come by ``now``, oldest first."""
+        out = []
+        while self._heap and self._heap[0][0] <= now:
+            out.append(heapq.heappop(self._heap)[2])
+        return out
+
+    def next_due(self) -> float:
+        """When the next item comes out (``inf`` if none)."""
+        return self._heap[0][0] if self._heap else math.inf
+
+    def clear(self) -> None:
+        """Drop everything in flight."""
+        self._heap.clear()
+
+
+def run_without_ros(bridge: SimBridge, core: Any, seed: int, start_s: float = 0.0) -> tuple[EpisodeResult, float]:
+    """One episode of ``core`` (a :class:`~autoscoop.deploy.controller.ControllerCore`) against the
+    simulator in one process, on simulated time: the ROS loop without its transport.
+
+    The controller gets every sensor period's readings and is updated at each (its control periods
+    fall on sensor periods); over ROS only the messages' delays and the clocks differ.
+
+    Args:
+        bridge: the simulator.
+        core: the controller, idle (its scoop starts here).
+        seed: the episode's seed.
+        start_s: the controller's clock at the episode's start (it must never go back).
+
+    Returns:
+        The episode's result and the controller's clock at its end.
+    """
+    readings = bridge.reset(seed)
+    command = bridge.start_command.copy()
+
+    def feed(r: SensorReadings) -> float:
+        now = start_s + r.time_s
+        core.joint_states(r.joint_names, r.joint_positions, now)
+        core.odometry(r.speed_mps, now)
+        core.pile_range(r.range_m, now, 0.0, 4.0)
+        core.bucket_torque(r.torque_nm, now)
+        return now
+
+    now = feed(readings)
+    core.scoop(True, now)
+    while not bridge.done:
+        published = core.update(now)
+        if published is not None:
+            command[0] = published.speed_mps
+            if published.lift_rad is not None:
+                command[1], command[2] = published.lift_rad, published.tilt_rad
+        readings = bridge.step(command)
+        now = feed(readings)
+    core.scoop(False, now)
+    return bridge.result(), now

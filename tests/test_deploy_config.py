@@ -1,0 +1,74 @@
+"""The robot's node config: defaults, checked ranges with clear errors, potentiometer calibration."""
+
+import pytest
+
+from autoscoop.cli import main
+from autoscoop.config import ConfigError
+from autoscoop.deploy.robot_config import (PotentiometerCalibration, RobotNodeConfig, load_robot_config,
+                                           robot_config_from_dict)
+
+
+def test_defaults_match_the_paper_and_the_environment():
+    c = RobotNodeConfig()
+    assert (c.control.control_period_s, c.control.input_timeout_s, c.control.episode_s) == (0.25, 0.5, 8.0)
+    assert (c.limits.max_speed_mps, c.limits.lift_min_rad, c.limits.lift_max_rad) == (0.1, -0.10, 0.32)
+    assert (c.limits.tilt_min_rad, c.limits.tilt_max_rad) == (-0.50, 0.90)
+    assert c.topics.lift_command == "lift_controller/command" and not c.topics.cmd_vel.startswith("/")
+
+
+@pytest.mark.parametrize("data, fragment", [
+    ({"control": {"input_timeout_s": 0}}, "control.input_timeout_s = 0.0 is out of range; allowed [0.02, 5.0] s"),
+    ({"control": {"control_period_s": "fast"}}, "control.control_period_s = 'fast' must be a number"),
+    ({"limits": {"max_speed_mps": 1.0}}, "limits.max_speed_mps = 1.0 is out of range; allowed [0.0, 0.5] m/s"),
+    ({"limits": {"lift_max_rad": 0.5}}, "limits.lift_max_rad"),
+    ({"limits": {"tilt_min_rad": 0.5, "tilt_max_rad": 0.2}}, "must be below limits.tilt_max_rad"),
+    ({"sensors": {"joint_margin_rad": float("nan")}}, "must be finite"),
+    ({"sensors": {"lift_joint": "tilt"}}, "two different non-empty names"),
+    ({"topics": {"cmd_vel": "cmd vel"}}, "topics.cmd_vel = 'cmd vel' is not a valid ROS name"),
+    ({"topics": {"odom": "joint_states"}}, "each needs its own"),
+    ({"estop": {"required": "maybe"}}, "estop.required = 'maybe' is not allowed"),
+    ({"payload": {"calibration": "/no/such.yaml"}}, "payload.calibration"),
+    ({"potentiometer": {"lift": {"raw": [1, 2, 2], "rad": [0, 0.1, 0.2]}}}, "strictly increasing or strictly decreasing"),
+    ({"potentiometer": {"lift": {"raw": [1, 2], "rad": [0, 0.1, 0.2]}}}, "same length"),
+    ({"potentiometer": {"wrist": None}}, "lift and/or tilt"),
+    ({"control": {"speed": 1}}, "unknown robot config key(s) ['control.speed']"),
+    ({"motors": {}}, "unknown robot config section(s) ['motors']"),
+])
+def test_bad_values_name_the_key_and_what_is_allowed(data, fragment):
+    with pytest.raises(ConfigError) as error:
+        robot_config_from_dict(data)
+    assert fragment in str(error.value)
+
+
+def test_potentiometer_calibration_maps_both_ways_and_extends_the_end_segments():
+    cal = PotentiometerCalibration.parse("potentiometer.lift", {"raw": [900, 500, 100], "rad": [-0.1, 0.1, 0.32]})
+    assert cal.to_rad(500) == pytest.approx(0.1)
+    assert cal.to_rad(300) == pytest.approx(0.21)
+    assert cal.to_rad(950) == pytest.approx(-0.125)  # extended beyond the measured span
+    for angle in (-0.1, 0.0, 0.17, 0.32):
+        assert cal.to_rad(cal.to_raw(angle)) == pytest.approx(angle)
+
+
+def test_yaml_file_round_trip_and_errors_name_the_file(tmp_path):
+    good = tmp_path / "robot.yaml"
+    good.write_text("control: {input_timeout_s: 0.3}\npotentiometer:\n  tilt: {raw: [0, 1023], rad: [-0.5, 0.9]}\n")
+    config = load_robot_config(good)
+    assert config.control.input_timeout_s == 0.3 and config.tilt_potentiometer.to_rad(1023) == pytest.approx(0.9)
+    assert robot_config_from_dict(config.to_dict()) == config
+    bad = tmp_path / "bad.yaml"
+    bad.write_text("limits: {max_speed_mps: 2}\n")
+    with pytest.raises(ConfigError, match=r"bad\.yaml: limits\.max_speed_mps"):
+        load_robot_config(bad)
+
+
+def test_controller_refuses_to_start_with_a_bad_config(tmp_path, capsys):
+    bad = tmp_path / "robot.yaml"
+    bad.write_text("control: {input_timeout_s: -1}\n")
+    assert main(["ros", "controller", "--policy", "heuristic", "--config", str(bad)]) == 2
+    err = capsys.readouterr().err
+    assert "controller not started" in err and "control.input_timeout_s" in err and "allowed [0.02, 5.0]" in err
+
+
+def test_controller_check_prints_the_config_without_ros(capsys):
+    assert main(["ros", "controller", "--policy", "heuristic", "--check"]) == 0
+    assert "control.input_timeout_s" in capsys.readouterr().out

@@ -1,0 +1,154 @@
+"""The ROS 1 nodes for real: a private rosmaster, the controller and the simulator as their own processes.
+
+Skipped only where ROS 1 cannot be had (``make test`` installs Debian's packages when root). The
+controller under test runs the heuristic; a stand-in robot in this process publishes the sensors.
+"""
+
+import json
+import math
+import subprocess
+import sys
+import time
+
+import numpy as np
+import pytest
+
+from autoscoop.deploy.ros1 import INSTALL_HINT, ros_available
+
+if not ros_available():
+    pytest.skip(f"ROS 1 is not available here: {INSTALL_HINT}", allow_module_level=True)
+
+from autoscoop.deploy.robot_config import RobotNodeConfig  # noqa: E402
+from autoscoop.deploy.ros1 import import_rospy  # noqa: E402
+from autoscoop.deploy.ros1.master import RosMaster  # noqa: E402
+from autoscoop.deploy.ros1.probe import RobotProbe, estop_trial, latency_summary, watchdog_trial  # noqa: E402
+from autoscoop.evaluate import summarize  # noqa: E402
+from autoscoop.records import load_record  # noqa: E402
+
+CONFIG = RobotNodeConfig()
+PERIOD, TIMEOUT = CONFIG.control.control_period_s, CONFIG.control.input_timeout_s
+LIMITS = CONFIG.limits
+
+
+def autoscoop_process(args, env, namespace=None, **kwargs):
+    env = dict(env, **({"ROS_NAMESPACE": namespace} if namespace else {}))
+    return subprocess.Popen([sys.executable, "-m", "autoscoop.cli", *args], env=env, stdout=subprocess.PIPE,
+                            stderr=subprocess.STDOUT, text=True, **kwargs)
+
+
+def stop(process):
+    process.terminate()
+    try:
+        out, _ = process.communicate(timeout=15)
+    except subprocess.TimeoutExpired:
+        process.kill()
+        out, _ = process.communicate()
+    return out
+
+
+@pytest.fixture(scope="module")
+def master():
+    with RosMaster() as m:
+        m.use_here()
+        yield m
+
+
+@pytest.fixture(scope="module")
+def probe(master):
+    """The controller (heuristic) in its own process, and the stand-in robot in this one."""
+    controller = autoscoop_process(["ros", "controller", "--policy", "heuristic"], master.env)
+    rospy = import_rospy()
+    rospy.init_node("autoscoop_test_probe", anonymous=True, disable_signals=True)
+    robot = RobotProbe(rate_hz=50.0)
+    try:
+        robot.wait_for_controller(timeout_s=60)
+    except TimeoutError:
+        pytest.fail(f"controller did not connect:\n{stop(controller)[-3000:]}")
+    yield robot
+    robot.close()
+    log = stop(controller)
+    assert "Traceback" not in log, log[-3000:]
+
+
+def test_watchdog_stops_the_robot_within_timeout_plus_one_period(probe):
+    rng = np.random.default_rng(0)
+    latencies = [watchdog_trial(probe, rng.uniform(0, PERIOD)) for _ in range(5)]
+    summary = latency_summary(latencies)
+    print(f"watchdog latency: {summary}")
+    assert max(latencies) <= TIMEOUT + PERIOD, summary
+    assert min(latencies) >= TIMEOUT - 0.02, summary  # it does not stop early either
+
+
+def test_estop_stops_the_robot_within_one_control_period(probe):
+    rng = np.random.default_rng(1)
+    latencies = [estop_trial(probe, rng.uniform(0, PERIOD)) for _ in range(3)]
+    assert max(latencies) <= PERIOD, latency_summary(latencies)
+
+
+def _fuzzed(probe, rng):
+    """Message makers that send garbage about a third of the time."""
+    bad = [math.nan, math.inf, -math.inf, 1e308, -1e308, 7.0, -7.0]
+    JointState, Odometry, Range, Float64 = (probe.msg[k] for k in ("JointState", "Odometry", "Range", "Float64"))
+
+    def maybe(good):
+        return float(rng.choice(bad)) if rng.random() < 0.33 else good
+
+    def joints():
+        names = [n for n in ("lift", "tilt") if rng.random() < 0.9]
+        return JointState(name=names, position=[maybe(0.23), maybe(0.0)][:int(rng.integers(0, 3))])
+
+    def odom():
+        msg = Odometry()
+        msg.twist.twist.linear.x = maybe(0.05)
+        return msg
+
+    def distance():
+        return Range(min_range=maybe(0.0), max_range=maybe(4.0), range=maybe(0.3))
+
+    return {"joint_states": joints, "odom": odom, "pile_range": distance,
+            "bucket_torque": lambda: Float64(maybe(-1.0))}
+
+
+def test_fuzzed_sensor_messages_never_yield_a_bad_command(probe):
+    rng = np.random.default_rng(2)
+    start = probe.publish("scoop", probe.msg["Bool"](True))
+    probe.custom.update(_fuzzed(probe, rng))
+    time.sleep(3.0)
+    probe.custom.clear()
+    speeds = [r.value for r in probe.commands("cmd_vel", start)]
+    lifts = [r.value for r in probe.commands("lift", start)]
+    tilts = [r.value for r in probe.commands("tilt", start)]
+    assert len(speeds) >= 10
+    for values, low, high in ((speeds, -LIMITS.max_speed_mps, LIMITS.max_speed_mps),
+                              (lifts, LIMITS.lift_min_rad, LIMITS.lift_max_rad),
+                              (tilts, LIMITS.tilt_min_rad, LIMITS.tilt_max_rad)):
+        a = np.asarray(values)
+        assert np.all(np.isfinite(a)) and np.all(a >= low) and np.all(a <= high), (low, high, a)
+    assert 0.0 in speeds  # garbage stopped the robot
+    recovered = time.monotonic()
+    assert probe.wait_for_command("cmd_vel", lambda v: v > 0, since=recovered, timeout_s=3.0), "did not resume"
+
+
+def test_sim_and_controller_scoop_over_ros_with_remapped_topics(master, tmp_path):
+    """`ros sim` + `ros controller` in their own namespace, joint_states remapped on both sides."""
+    remap = "joint_states:=sensors/joints"
+    controller = autoscoop_process(["ros", "controller", "--policy", "heuristic", "--record", str(tmp_path / "robot"),
+                                    remap], master.env, namespace="e2e")
+    out = tmp_path / "ros_sim.json"
+    try:
+        sim = subprocess.run([sys.executable, "-m", "autoscoop.cli", "ros", "sim", "--episodes", "1", "--json",
+                              str(out), "--set", "pile.variants=1", "--joint-noise-rad", "0.001", remap],
+                             env=dict(master.env, ROS_NAMESPACE="e2e"), capture_output=True, text=True, timeout=120)
+    finally:
+        log = stop(controller)
+    assert sim.returncode == 0, sim.stdout[-3000:] + sim.stderr[-3000:] + log[-3000:]
+    summary = json.loads(out.read_text())
+    from autoscoop.config import ScoopConfig
+
+    assert set(summarize([], ScoopConfig(), "x")) <= set(summary)  # the same summary as `autoscoop eval`
+    assert summary["policy"] == "heuristic" and summary["episodes"] == 1
+    (episode,) = summary["episodes_detail"]
+    assert episode["success"] and episode["fill_factor"] > 0.2, summary
+    assert summary["ros"]["real_time_factor"] > 0.8
+    records = sorted((tmp_path / "robot").glob("*.npz"))
+    assert records and len(load_record(records[0])) >= 15, log[-3000:]
