@@ -63,3 +63,16 @@ def test_gym_make_takes_overrides_and_sets_the_time_limit():
     assert steps == 8 and truncated
     with pytest.raises(ConfigError, match="pile.angle_deg"):
         gym.make("autoscoop/Scoop-v0", **{"pile.angle_deg": 5})
+
+
+def test_angle_mix_gives_each_pile_variant_one_of_the_angles():
+    from autoscoop.envs.scoop import ScoopEnv
+
+    env = ScoopEnv(**{"pile.angle_mix_deg": "[25, 40]", "pile.variants": 4})
+    angles = set()
+    for seed in range(12):
+        _, info = env.reset(seed=seed)
+        angles.add(info["pile_angle_deg"])
+    assert angles == {25.0, 40.0}
+    with pytest.raises(ConfigError, match=r"pile.angle_mix_deg holds 70.0, out of range; allowed \[15.0, 60.0\]"):
+        ScoopConfig().with_overrides({"pile.angle_mix_deg": "[25, 70]"})

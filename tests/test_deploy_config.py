@@ -72,3 +72,22 @@ def test_controller_refuses_to_start_with_a_bad_config(tmp_path, capsys):
 def test_controller_check_prints_the_config_without_ros(capsys):
     assert main(["ros", "controller", "--policy", "heuristic", "--check"]) == 0
     assert "control.input_timeout_s" in capsys.readouterr().out
+
+
+def test_the_example_robot_config_is_valid_and_its_calibration_round_trips_through_the_simulator():
+    from pathlib import Path
+
+    from autoscoop.config import ScoopConfig
+    from autoscoop.deploy.controller import ControllerCore
+    from autoscoop.deploy.sim_bridge import SimBridge
+
+    robot = load_robot_config(Path(__file__).parents[1] / "docs" / "robot.example.yaml")
+    assert robot.lift_potentiometer is not None and robot.tilt_potentiometer is not None
+    bridge = SimBridge(ScoopConfig().with_overrides({"pile.variants": 1}), robot=robot)
+    readings = bridge.reset(0)
+    assert readings.joint_positions[0] > 100  # raw potentiometer counts, not radians
+    core = ControllerCore(robot, policy=None)
+    assert core.joint_states(readings.joint_names, readings.joint_positions, 0.0)
+    sim = bridge.env.unwrapped.sim
+    assert (core.lift_rad, core.tilt_rad) == pytest.approx((sim.lift_rad, sim.tilt_rad), abs=1e-9)
+    bridge.close()

@@ -56,24 +56,27 @@ class MassFromTorque(Protocol):
 class PayloadMass:
     """The node's mass input: :class:`autoscoop.payload.PayloadEstimator` with eq. 4 (bucket torque alone).
 
-    A negative estimate (noise on an empty bucket) reads 0; where eq. 4 is undefined (the payload's
-    centre right above the joint) the last estimate is kept.
+    An estimate below ``empty_below_kg`` reads 0: with an empty bucket the torque still swings while
+    the robot accelerates, and a controller must not take that for a first particle. Where eq. 4 is
+    undefined (the payload's centre right above the joint) the last estimate is kept.
 
     Args:
         calibration: payload calibration YAML (``autoscoop payload calibrate``); empty: the nominal one.
+        empty_below_kg: the estimator's noise floor, kg.
     """
 
-    def __init__(self, calibration: str | Path = "") -> None:
+    def __init__(self, calibration: str | Path = "", empty_below_kg: float = 0.0) -> None:
         from autoscoop.payload import PayloadCalibration, PayloadEstimator  # noqa: PLC0415 - numpy only
 
         cal = PayloadCalibration.load(calibration) if calibration else PayloadCalibration()
         self.estimator = PayloadEstimator(cal, method="eq4")
+        self.empty_below_kg = empty_below_kg
         self._last = 0.0
 
     def __call__(self, tilt_torque_nm: float, lift_rad: float, tilt_rad: float) -> float:
         mass = self.estimator.mass_kg(lift_rad, tilt_rad, math.nan, tilt_torque_nm)
         if math.isfinite(mass):
-            self._last = max(mass, 0.0)
+            self._last = mass if mass >= self.empty_below_kg else 0.0
         return self._last
 
 
@@ -114,7 +117,8 @@ class ControllerCore:
         self.limiter = CommandLimiter(config.limits, self.period_s)
         inputs = SENSOR_INPUTS + (("estop",) if config.estop.required else ())
         self.watchdog = InputWatchdog(inputs, config.control.input_timeout_s)
-        self.mass_from_torque = mass_from_torque or PayloadMass(config.payload.calibration)
+        self.mass_from_torque = mass_from_torque or PayloadMass(config.payload.calibration,
+                                                                config.payload.empty_below_kg)
         self.record_dir = None if record_dir is None else Path(record_dir)
         self.log = log or (lambda level, text: None)
         margin = config.sensors.joint_margin_rad

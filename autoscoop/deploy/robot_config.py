@@ -98,6 +98,8 @@ class PayloadSection(_Section):
     _section = "payload"
     calibration: str = _field("", "-", "payload calibration YAML (autoscoop payload calibrate); empty: nominal")
     rated_load_kg: float = _field(7.0, "kg", "rated bucket load: the state's w = mass / rated load", 0.1, 100.0)
+    empty_below_kg: float = _field(0.35, "kg", "estimates below this read 0: the estimate's swing with an empty "
+                                               "bucket while driving (+-0.65 kg in simulation)", 0.0, 5.0)
 
 
 TOPIC_DEFAULTS = {

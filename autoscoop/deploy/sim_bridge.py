@@ -1,10 +1,11 @@
 """The simulator behind the robot's topics, free of ROS: commands in, sensor readings out, per physics step.
 
 :class:`SimBridge` runs the scoop environment (:class:`autoscoop.envs.scoop.ScoopEnv`) with its
-control period shortened to the sensor period (one or a few physics steps, about 48 Hz) and turns
-each received command into the environment's action: the targets jump to the commanded speed and
-joint positions, and the lift and tilt servos move toward them at the actuators' speed, as on the
-robot. Each step yields the readings the robot's sensors give (joint positions, wheel-odometry
+control period shortened to the sensor period (one or a few physics steps, about 48 Hz). A received
+speed command is the wheels' target at once; a received joint position command starts the servo's
+setpoint moving toward it as the environment moves it: at ``(command - setpoint) / control period``,
+bounded by the actuator's speed, until it gets there or the next command arrives. With one command
+per control period this is exactly the environment's servo, so only the topics' timing differs. Each step yields the readings the robot's sensors give (joint positions, wheel-odometry
 speed, range from the tip to the pile, bucket torque), with Gaussian noise, and the episode ends as
 in evaluation (success or the time limit), with the same metrics.
 """
@@ -101,7 +102,11 @@ class SimBridge:
         self.rng = np.random.default_rng(seed)
         self.limits = CommandLimits(max_speed_mps=config.robot.max_speed_mps)
         self._span = self.limits.high - self.limits.low
+        self.servo_period_s = config.env.control_period_s
+        self._servo_speed = np.array([config.robot.lift_speed_radps, config.robot.tilt_speed_radps])
         self._targets = np.zeros(3)
+        self._goal = np.zeros(3)
+        self._rate = np.zeros(2)
         self._info: dict[str, Any] = {}
         self.seed = 0
         self.steps = 0
@@ -117,25 +122,54 @@ class SimBridge:
         """A new episode (the scene reset, a fresh settled pile) from ``seed``; its first readings."""
         _, self._info = self.env.reset(seed=seed)
         self._targets = self.start_command
+        self._goal, self._rate = self.start_command, np.zeros(2)
         self.seed, self.steps, self.done = seed, 0, False
         return self.readings()
 
-    def step(self, command: np.ndarray) -> SensorReadings:
-        """Advance one sensor period under ``command`` = (speed m/s, lift rad, tilt rad); the new readings.
+    def command_speed(self, speed_mps: float) -> None:
+        """A ``cmd_vel`` arrived: the wheels' speed target, m/s (clipped to the limit; non-finite ignored)."""
+        if math.isfinite(speed_mps):
+            self._goal[0] = float(np.clip(speed_mps, self.limits.low[0], self.limits.high[0]))
 
-        The targets become the command (clipped to the limits); the servos move toward them at their
-        speed. After the episode ends, further steps do nothing.
+    def command_joint(self, joint: str, position_rad: float) -> None:
+        """A joint position command arrived (``lift`` or ``tilt``, rad): start the setpoint's ramp toward it."""
+        index = {"lift": 1, "tilt": 2}[joint]
+        if not math.isfinite(position_rad):
+            return
+        goal = float(np.clip(position_rad, self.limits.low[index], self.limits.high[index]))
+        self._goal[index] = goal
+        rate = (goal - self._setpoints()[index - 1]) / self.servo_period_s
+        self._rate[index - 1] = float(np.clip(rate, -self._servo_speed[index - 1], self._servo_speed[index - 1]))
+
+    def step(self, command: np.ndarray | None = None) -> SensorReadings:
+        """Advance one sensor period; the new readings. After the episode ends, steps do nothing.
+
+        Args:
+            command: (speed m/s, lift rad, tilt rad) received just now, or ``None`` when nothing arrived.
         """
+        if command is not None:
+            self.command_speed(command[0])
+            self.command_joint("lift", command[1])
+            self.command_joint("tilt", command[2])
         if self.done:
             return self.readings()
-        desired = np.clip(np.asarray(command, dtype=float), self.limits.low, self.limits.high)
-        desired = np.where(np.isfinite(desired), desired, self._targets)
+        setpoints = self._setpoints()
+        desired = self._goal.copy()
+        for k in range(2):  # where each setpoint should be after this step: one step further along its ramp
+            remaining = self._goal[k + 1] - setpoints[k]
+            move = self._rate[k] * self.sensor_period_s
+            if abs(remaining) > abs(move) and np.sign(remaining) == np.sign(move):
+                desired[k + 1] = setpoints[k] + move
         action = np.clip((desired - self._targets) / self._span, -1.0, 1.0)
         self._targets = np.clip(self._targets + action * self._span, self.limits.low, self.limits.high)
         _, _, terminated, truncated, self._info = self.env.step(action)
         self.steps += 1
         self.done = bool(terminated or truncated)
         return self.readings()
+
+    def _setpoints(self) -> np.ndarray:
+        sim = self.env.unwrapped.sim
+        return np.array([sim.lift_setpoint_rad, sim.tilt_setpoint_rad])
 
     def readings(self) -> SensorReadings:
         """The sensors' view of the scene now, with noise."""
@@ -224,7 +258,6 @@ def run_without_ros(bridge: SimBridge, core: Any, seed: int, start_s: float = 0.
         The episode's result and the controller's clock at its end.
     """
     readings = bridge.reset(seed)
-    command = bridge.start_command.copy()
 
     def feed(r: SensorReadings) -> float:
         now = start_s + r.time_s
@@ -239,10 +272,11 @@ def run_without_ros(bridge: SimBridge, core: Any, seed: int, start_s: float = 0.
     while not bridge.done:
         published = core.update(now)
         if published is not None:
-            command[0] = published.speed_mps
+            bridge.command_speed(published.speed_mps)
             if published.lift_rad is not None:
-                command[1], command[2] = published.lift_rad, published.tilt_rad
-        readings = bridge.step(command)
+                bridge.command_joint("lift", published.lift_rad)
+                bridge.command_joint("tilt", published.tilt_rad)
+        readings = bridge.step()
         now = feed(readings)
     core.scoop(False, now)
     return bridge.result(), now

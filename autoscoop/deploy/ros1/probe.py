@@ -56,6 +56,7 @@ class RobotProbe:
         self.custom: dict[str, Callable[[], Any]] = {}
         """Per topic, a function that returns the next message to publish instead of the normal one."""
         self.received: list[Received] = []
+        self.errors: list[str] = []
         self._lock = threading.Lock()
         self._stop = threading.Event()
         self.publishers = {
@@ -97,7 +98,11 @@ class RobotProbe:
                 if not self.enabled[topic]:
                     continue
                 make = self.custom.get(topic)
-                self.publishers[topic].publish(make() if make else self.normal_message(topic))
+                try:
+                    self.publishers[topic].publish(make() if make else self.normal_message(topic))
+                except (self.rospy.ROSException, ValueError, OverflowError, TypeError) as error:
+                    self.errors.append(f"{topic}: {error}")  # a message that cannot even be serialised
+                    continue
                 self.last_published[topic] = time.monotonic()
             tick += self.period_s
             time.sleep(max(0.0, tick - time.monotonic()))

@@ -6,6 +6,12 @@ episode starts, false when it ends. Obeys ``cmd_vel``, ``lift_controller/command
 ``tilt_controller/command``. Between episodes it resets the scene, holds the physics still while it
 publishes the new scene's readings (so the controller's inputs are fresh), then starts the next
 episode; commands that arrive while it is held are ignored.
+
+The episode's physics starts half a sensor period after the controller's first command: the
+controller's later commands (one per control period, on its own clock) then arrive between two
+physics steps, not on their edges, and each takes effect at the start of a control period, as in
+the environment. Without that, whether a command lands one step earlier or later is a coin toss
+that the scripted baseline, which dead-reckons from odometry, is sensitive to.
 """
 
 from __future__ import annotations
@@ -25,6 +31,8 @@ from autoscoop.evaluate import EpisodeResult
 NODE_NAME = "autoscoop_sim"
 SETTLE_S = 0.5
 """Readings of a reset scene are published this long (plus the delay) before the episode starts."""
+FIRST_COMMAND_TIMEOUT_S = 2.0
+"""After ``scoop`` true, the physics waits this long at most for the controller's first command."""
 
 
 @dataclass
@@ -70,20 +78,30 @@ def run_sim_node(bridge: SimBridge, episodes: int, seed: int = 0, delay_s: float
     rospy.init_node(node_name, argv=argv, anonymous=False)
     topics = bridge.robot.topics
     lock = threading.Lock()
-    command = bridge.start_command.copy()
+    arrived: list[tuple[str, float]] = []
+    """commands received since the last step, applied in order before the next one"""
     live = threading.Event()
 
-    def on_cmd_vel(msg: Twist) -> None:
-        if live.is_set():
-            with lock:
-                command[0] = msg.linear.x
+    first_arrival: list[float] = []
 
-    def on_joint(index: int) -> Callable[[Float64], None]:
-        def callback(msg: Float64) -> None:
+    def on_command(name: str, value: Callable[[object], float]) -> Callable[[object], None]:
+        def callback(msg: object) -> None:
             if live.is_set():
                 with lock:
-                    command[index] = msg.data
+                    arrived.append((name, float(value(msg))))
+                    if not first_arrival:
+                        first_arrival.append(time.monotonic())
         return callback
+
+    def first_command(deadline: float) -> float:
+        """When the controller's first command of the episode arrived (or the deadline, if none did)."""
+        while time.monotonic() < deadline and not rospy.is_shutdown():
+            publish_due()
+            with lock:
+                if first_arrival:
+                    return first_arrival[0]
+            time.sleep(0.0005)
+        return deadline
 
     publishers = {
         "joint_states": rospy.Publisher(topics.joint_states, JointState, queue_size=20, tcp_nodelay=True),
@@ -92,9 +110,13 @@ def run_sim_node(bridge: SimBridge, episodes: int, seed: int = 0, delay_s: float
         "bucket_torque": rospy.Publisher(topics.bucket_torque, Float64, queue_size=20, tcp_nodelay=True),
     }
     scoop = rospy.Publisher(topics.scoop, Bool, queue_size=10, tcp_nodelay=True)
-    subscribers = [rospy.Subscriber(topics.cmd_vel, Twist, on_cmd_vel, queue_size=10, tcp_nodelay=True),
-                   rospy.Subscriber(topics.lift_command, Float64, on_joint(1), queue_size=10, tcp_nodelay=True),
-                   rospy.Subscriber(topics.tilt_command, Float64, on_joint(2), queue_size=10, tcp_nodelay=True)]
+    subscribers = [
+        rospy.Subscriber(topics.cmd_vel, Twist, on_command("speed", lambda m: m.linear.x), queue_size=10,
+                         tcp_nodelay=True),
+        rospy.Subscriber(topics.lift_command, Float64, on_command("lift", lambda m: m.data), queue_size=10,
+                         tcp_nodelay=True),
+        rospy.Subscriber(topics.tilt_command, Float64, on_command("tilt", lambda m: m.data), queue_size=10,
+                         tcp_nodelay=True)]
     line = DelayLine(delay_s)
 
     def messages(r: SensorReadings) -> list[tuple[str, object]]:
@@ -151,7 +173,8 @@ def run_sim_node(bridge: SimBridge, episodes: int, seed: int = 0, delay_s: float
             live.clear()
             readings = bridge.reset(seed + index)
             with lock:
-                command[:] = bridge.start_command
+                arrived.clear()
+                first_arrival.clear()
             hold_until = time.monotonic() + SETTLE_S + delay_s
             tick = time.monotonic()
             while time.monotonic() < hold_until and not rospy.is_shutdown():
@@ -160,11 +183,18 @@ def run_sim_node(bridge: SimBridge, episodes: int, seed: int = 0, delay_s: float
                 wait_until(tick)
             live.set()
             scoop.publish(Bool(True))
-            start_wall, tick = time.monotonic(), time.monotonic()
+            tick = first_command(time.monotonic() + FIRST_COMMAND_TIMEOUT_S) + period / 2
+            wait_until(tick)
+            start_wall = time.monotonic()
             while not bridge.done and not rospy.is_shutdown():
                 with lock:
-                    now_command = command.copy()
-                readings = bridge.step(now_command)
+                    received, arrived[:] = list(arrived), []
+                for name, value in received:
+                    if name == "speed":
+                        bridge.command_speed(value)
+                    else:
+                        bridge.command_joint(name, value)
+                readings = bridge.step()
                 sample(readings)
                 tick += period
                 if time.monotonic() > tick:

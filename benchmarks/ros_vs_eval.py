@@ -1,0 +1,95 @@
+"""Fill factor over ROS (``autoscoop ros sim`` + ``autoscoop ros controller``) against ``autoscoop eval``.
+
+Starts a private rosmaster, the controller and the simulator (same pile, same seeds as evaluation),
+runs N episodes in real time, then evaluates the same policy for the same seeds without ROS, and
+prints both with the topics' delay (stamp -> arrival, measured by the controller) and the
+simulator's real-time factor. Acceptance: mean fill factors within 10 points.
+
+    .venv/bin/python benchmarks/ros_vs_eval.py --episodes 20 --json benchmarks/results/ros_vs_eval.json
+    .venv/bin/python benchmarks/ros_vs_eval.py --episodes 20 --delay-s 0.05 --noise   # a harsher link
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+from autoscoop.agents.loading import load_policy
+from autoscoop.config import ScoopConfig
+from autoscoop.deploy.ros1.master import RosMaster
+from autoscoop.evaluate import evaluate, summarize
+from autoscoop.records import load_record
+
+NOISE = ["--joint-noise-rad", "0.002", "--speed-noise-mps", "0.002", "--range-noise-m", "0.003",
+         "--torque-noise-nm", "0.2"]
+
+
+def measure(policy: str, episodes: int, delay_s: float, noise: bool, seed: int = 0) -> dict:
+    work = Path(tempfile.mkdtemp(prefix="autoscoop-ros-vs-eval-"))
+    cli = [sys.executable, "-m", "autoscoop.cli"]
+    with RosMaster() as master:
+        controller = subprocess.Popen([*cli, "ros", "controller", "--policy", policy, "--record", str(work / "robot")],
+                                      env=master.env, stdout=open(work / "controller.log", "w"),
+                                      stderr=subprocess.STDOUT)
+        started = time.monotonic()
+        try:
+            sim = subprocess.run([*cli, "ros", "sim", "--episodes", str(episodes), "--seed", str(seed), "--json",
+                                  str(work / "ros.json"), "--delay-s", str(delay_s), *(NOISE if noise else [])],
+                                 env=master.env, capture_output=True, text=True, timeout=60 + 15 * episodes)
+        finally:
+            controller.terminate()
+            controller.wait(timeout=15)
+        if sim.returncode != 0:
+            raise RuntimeError(f"ros sim failed:\n{sim.stdout[-2000:]}\n{sim.stderr[-2000:]}")
+        ros_wall = time.monotonic() - started
+    ros = json.loads((work / "ros.json").read_text())
+    config = ScoopConfig()
+    results = evaluate(load_policy(policy, config), config, episodes, seed=seed, progress=False)
+    ev = summarize(results, config, policy)
+    last = sorted((work / "robot").glob("*.npz"))[-1]  # the controller's delay statistics cover the whole run
+    delay_stats = load_record(last).meta.get("transport_delay_s", {})
+    keys = ("fill_factor_mean", "fill_factor_std", "success_rate", "cycle_time_mean", "cycle_time_std",
+            "mass_kg_mean", "spillage_mean")
+    return {
+        "policy": policy, "episodes": episodes, "seed": seed, "delay_s": delay_s, "noise": noise,
+        "ros": {k: ros[k] for k in keys}, "eval": {k: ev[k] for k in keys},
+        "fill_difference_points": 100 * (ros["fill_factor_mean"] - ev["fill_factor_mean"]),
+        "per_episode_fill": {"ros": [e["fill_factor"] for e in ros["episodes_detail"]],
+                             "eval": [r.fill_factor for r in results]},
+        "transport_delay_s": delay_stats, "ros_timing": ros["ros"], "ros_wall_s": ros_wall, "work_dir": str(work),
+    }
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--policy", default="heuristic")
+    parser.add_argument("--episodes", type=int, default=20)
+    parser.add_argument("--delay-s", type=float, default=0.0, help="extra delay of every sensor message, s")
+    parser.add_argument("--noise", action="store_true", help="sensor noise: " + " ".join(NOISE))
+    parser.add_argument("--json", type=Path)
+    args = parser.parse_args()
+    r = measure(args.policy, args.episodes, args.delay_s, args.noise)
+    for side in ("ros", "eval"):
+        s = r[side]
+        print(f"{side:>4}: fill {s['fill_factor_mean']:.3f} +- {s['fill_factor_std']:.3f}, success {s['success_rate']:.2f}, "
+              f"cycle {s['cycle_time_mean']:.2f} +- {s['cycle_time_std']:.2f} s")
+    print(f"difference {r['fill_difference_points']:+.1f} points over {args.episodes} episodes "
+          f"(sensor delay {args.delay_s} s, noise {args.noise})")
+    for name, s in r["transport_delay_s"].items():
+        print(f"  {name}: stamp -> controller median {s['median'] * 1e3:.1f} ms, p99 {s['p99'] * 1e3:.1f} ms, "
+              f"max {s['max'] * 1e3:.1f} ms")
+    print(f"  simulator real-time factor {r['ros_timing']['real_time_factor']:.2f}, late steps {r['ros_timing']['late_steps']}")
+    if args.json:
+        args.json.parent.mkdir(parents=True, exist_ok=True)
+        args.json.write_text(json.dumps(r, indent=2) + "\n")
+        print(f"wrote {args.json}")
+    return 0 if abs(r["fill_difference_points"]) <= 10 else 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())
