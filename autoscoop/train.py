@@ -9,8 +9,10 @@ A run directory holds everything needed to repeat and to use the run:
 | episodes.csv | one row per training episode: reward, fill factor, cycle time, success, steps |
 | tb/ | TensorBoard logs |
 | checkpoint/ | model and replay buffer every ``checkpoint_every`` episodes (for ``--resume``) |
-| policy.zip | the final SB3 model (pickle inside: load only what you trust) |
-| policy.safetensors, policy.json | the final actor in the safe format, with its hash |
+| policy.zip | the best SB3 model by periodic evaluation (pickle inside: load only what you trust) |
+| policy.safetensors, policy.json | that policy's actor in the safe format, with its hash |
+| last.safetensors, last.json | the actor at the end of training |
+| evaluations.csv | each periodic evaluation: episode, delivered fill, fill factor, success, cycle time |
 | learning_curve.png | reward, fill factor and cycle time against episode (the paper's Fig. 8) |
 """
 
@@ -66,6 +68,10 @@ class TrainArgs:
     """run directory; default runs/ALGO-sSEED-TIME."""
     checkpoint_every: int = 50
     """episodes between checkpoints of the model and the replay buffer."""
+    eval_every: int = 50
+    """episodes between evaluations of the deterministic policy; the best one is kept as policy.*."""
+    eval_episodes: int = 10
+    """episodes per evaluation (fixed seeds, the training config)."""
     progress: bool = True
     """show a progress bar."""
 
@@ -130,9 +136,10 @@ class EpisodeLogger(BaseCallback):
     """
 
     def __init__(self, run_dir: Path, episodes: int, done: int, spec: dict[str, Any], checkpoint_every: int,
-                 progress: bool) -> None:
+                 progress: bool, evaluator: "PolicyEvaluator | None" = None) -> None:
         super().__init__()
         self.run_dir, self.episodes, self.done = run_dir, episodes, done
+        self.evaluator = evaluator
         self.spec, self.checkpoint_every = spec, checkpoint_every
         self.returns: dict[int, float] = {}
         self.recent: list[dict[str, Any]] = []
@@ -184,6 +191,8 @@ class EpisodeLogger(BaseCallback):
                              cycle=f"{np.mean([r['cycle_time_s'] for r in successes]):.1f}" if successes else "-",
                              success=f"{len(successes) / len(self.recent):.2f}")
         self._update_noise()
+        if self.evaluator is not None and (self.done % self.evaluator.every == 0 or self.done == self.episodes):
+            self.evaluator.evaluate(self.model, self.done, self.logger)
         if self.done % self.checkpoint_every == 0 and self.done < self.episodes:
             self._checkpoint_due = True
 
@@ -196,6 +205,67 @@ class EpisodeLogger(BaseCallback):
     def _on_training_end(self) -> None:
         self.bar.close()
         self.csv_file.close()
+
+
+class PolicyEvaluator:
+    """Evaluates the deterministic policy every ``every`` episodes and keeps the best as ``policy.*``.
+
+    The score is the delivered fill: the fill factor of successful episodes, zero for failures
+    (what a loader is for). Seeds are fixed, so every evaluation sees the same piles.
+    """
+
+    SEED = 10_000
+
+    def __init__(self, run_dir: Path, config: ScoopConfig, every: int, episodes: int, info: dict[str, Any]) -> None:
+        self.run_dir, self.every, self.episodes, self.info = run_dir, every, episodes, info
+        self.env = make_scoop_env(config)
+        self.best = float(info.get("best_score", -1.0))
+        path = run_dir / "evaluations.csv"
+        self.csv_file = open(path, "a", newline="")  # noqa: SIM115
+        self.csv = csv.DictWriter(self.csv_file, fieldnames=["episode", "delivered_fill", "fill_factor", "success",
+                                                              "cycle_time_s"])
+        if path.stat().st_size == 0:
+            self.csv.writeheader()
+
+    def evaluate(self, model: Any, episode: int, logger: Any) -> float:
+        """Run the evaluation; save the policy if it is the best so far; return its score."""
+        fills, successes, cycles = [], [], []
+        for i in range(self.episodes):
+            obs, _ = self.env.reset(seed=self.SEED + i)
+            while True:
+                action, _ = model.predict(obs, deterministic=True)
+                obs, _, terminated, truncated, info = self.env.step(action)
+                if terminated or truncated:
+                    break
+            fills.append(info["fill_factor"])
+            successes.append(bool(info["success"]))
+            if info["success"]:
+                cycles.append(info["cycle_time_s"])
+        score = float(np.mean([f if s else 0.0 for f, s in zip(fills, successes)]))
+        row = {"episode": episode, "delivered_fill": round(score, 4), "fill_factor": round(float(np.mean(fills)), 4),
+               "success": round(float(np.mean(successes)), 3),
+               "cycle_time_s": round(float(np.mean(cycles)), 3) if cycles else math.nan}
+        self.csv.writerow(row)
+        self.csv_file.flush()
+        logger.record("eval/delivered_fill", score)
+        logger.record("eval/success", row["success"])
+        if score > self.best:
+            self.best = score
+            model.save(self.run_dir / "policy.zip")
+            save_actor(actor_from_sb3(model), self.run_dir / "policy.safetensors",
+                       {**_actor_meta(self.info, self.run_dir), "selected_at_episode": episode,
+                        "selection_score_delivered_fill": score})
+            self.info.update(best_score=score, best_episode=episode)
+        return score
+
+    def close(self) -> None:
+        self.csv_file.close()
+        self.env.close()
+
+
+def _actor_meta(info: dict[str, Any], run_dir: Path) -> dict[str, Any]:
+    return {"algo": info["algo"], "seed": info["seed"], "episodes": info["episodes"],
+            "autoscoop_version": __version__, "run": run_dir.name}
 
 
 def save_checkpoint(model: Any, run_dir: Path, episodes_done: int) -> None:
@@ -242,7 +312,8 @@ def train(args: TrainArgs) -> Path:
     (run_dir / "hyperparams.yaml").write_text(yaml.safe_dump(spec, sort_keys=False))
     info = {"algo": args.algo, "seed": args.seed, "episodes": args.episodes, "n_envs": args.n_envs,
             "autoscoop_version": __version__, "command": " ".join(sys.argv), "torch": torch.__version__,
-            "checkpoint_every": args.checkpoint_every, "status": "running", "wall_s": 0.0}
+            "checkpoint_every": args.checkpoint_every, "eval_every": args.eval_every,
+            "eval_episodes": args.eval_episodes, "status": "running", "wall_s": 0.0}
     _write_run_json(run_dir, info)
     return _run(run_dir, config, spec, info, done=0, model=None, progress=args.progress)
 
@@ -300,20 +371,23 @@ def _run(run_dir: Path, config: ScoopConfig, spec: dict[str, Any], info: dict[st
     else:
         model.tensorboard_log = str(run_dir / "tb")
     started = time.time()
-    logger = EpisodeLogger(run_dir, episodes, done, spec, info["checkpoint_every"], progress)
+    evaluator = PolicyEvaluator(run_dir, config, info.get("eval_every", 50), info.get("eval_episodes", 10), info) \
+        if info.get("eval_every", 50) > 0 else None
+    logger = EpisodeLogger(run_dir, episodes, done, spec, info["checkpoint_every"], progress, evaluator)
     max_steps = config.max_episode_steps
     try:
         model.learn(total_timesteps=(episodes - done + n_envs) * max_steps, callback=logger,
                     reset_num_timesteps=done == 0, tb_log_name="run", progress_bar=False)
     finally:
         model.get_env().close()
+        if evaluator is not None:
+            evaluator.close()
         info["wall_s"] = round(info.get("wall_s", 0.0) + time.time() - started, 1)
         _write_run_json(run_dir, info)
-    model.save(run_dir / "policy.zip")
-    actor = actor_from_sb3(model)
-    save_actor(actor, run_dir / "policy.safetensors",
-               {"algo": info["algo"], "seed": seed, "episodes": episodes, "autoscoop_version": __version__,
-                "run": run_dir.name})
+    save_actor(actor_from_sb3(model), run_dir / "last.safetensors", _actor_meta(info, run_dir))
+    if not (run_dir / "policy.zip").exists():  # no evaluation ran: the last policy is the policy
+        model.save(run_dir / "policy.zip")
+        save_actor(actor_from_sb3(model), run_dir / "policy.safetensors", _actor_meta(info, run_dir))
     info.update(status="finished", policy_zip_sha256=sha256_of(run_dir / "policy.zip"))
     _write_run_json(run_dir, info)
     shutil.rmtree(run_dir / "checkpoint", ignore_errors=True)

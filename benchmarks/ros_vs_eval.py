@@ -29,11 +29,14 @@ NOISE = ["--joint-noise-rad", "0.002", "--speed-noise-mps", "0.002", "--range-no
          "--torque-noise-nm", "0.2"]
 
 
-def measure(policy: str, episodes: int, delay_s: float, noise: bool, seed: int = 0) -> dict:
+def measure(policy: str, episodes: int, delay_s: float, noise: bool, seed: int = 0,
+            robot_config: Path | None = None) -> dict:
     work = Path(tempfile.mkdtemp(prefix="autoscoop-ros-vs-eval-"))
     cli = [sys.executable, "-m", "autoscoop.cli"]
     with RosMaster() as master:
-        controller = subprocess.Popen([*cli, "ros", "controller", "--policy", policy, "--record", str(work / "robot")],
+        robot = ["--config", str(robot_config)] if robot_config else []
+        controller = subprocess.Popen([*cli, "ros", "controller", "--policy", policy, "--record", str(work / "robot"),
+                                       *robot],
                                       env=master.env, stdout=open(work / "controller.log", "w"),
                                       stderr=subprocess.STDOUT)
         started = time.monotonic()
@@ -56,7 +59,8 @@ def measure(policy: str, episodes: int, delay_s: float, noise: bool, seed: int =
     keys = ("fill_factor_mean", "fill_factor_std", "success_rate", "cycle_time_mean", "cycle_time_std",
             "mass_kg_mean", "spillage_mean")
     return {
-        "policy": policy, "episodes": episodes, "seed": seed, "delay_s": delay_s, "noise": noise,
+        "policy": policy, "robot_config": str(robot_config) if robot_config else None, "episodes": episodes,
+        "seed": seed, "delay_s": delay_s, "noise": noise,
         "ros": {k: ros[k] for k in keys}, "eval": {k: ev[k] for k in keys},
         "fill_difference_points": 100 * (ros["fill_factor_mean"] - ev["fill_factor_mean"]),
         "per_episode_fill": {"ros": [e["fill_factor"] for e in ros["episodes_detail"]],
@@ -71,19 +75,23 @@ def main() -> int:
     parser.add_argument("--episodes", type=int, default=20)
     parser.add_argument("--delay-s", type=float, default=0.0, help="extra delay of every sensor message, s")
     parser.add_argument("--noise", action="store_true", help="sensor noise: " + " ".join(NOISE))
+    parser.add_argument("--robot-config", type=Path,
+                        help="the controller's YAML, e.g. with payload: {source: topic} (the simulator's true mass)")
     parser.add_argument("--json", type=Path)
     args = parser.parse_args()
-    r = measure(args.policy, args.episodes, args.delay_s, args.noise)
+    r = measure(args.policy, args.episodes, args.delay_s, args.noise, robot_config=args.robot_config)
     for side in ("ros", "eval"):
         s = r[side]
-        print(f"{side:>4}: fill {s['fill_factor_mean']:.3f} +- {s['fill_factor_std']:.3f}, success {s['success_rate']:.2f}, "
-              f"cycle {s['cycle_time_mean']:.2f} +- {s['cycle_time_std']:.2f} s")
+        cycle = "n/a" if s["cycle_time_mean"] is None else f"{s['cycle_time_mean']:.2f} +- {s['cycle_time_std']:.2f} s"
+        print(f"{side:>4}: fill {s['fill_factor_mean']:.3f} +- {s['fill_factor_std']:.3f}, "
+              f"success {s['success_rate']:.2f}, cycle {cycle}")
     print(f"difference {r['fill_difference_points']:+.1f} points over {args.episodes} episodes "
           f"(sensor delay {args.delay_s} s, noise {args.noise})")
     for name, s in r["transport_delay_s"].items():
         print(f"  {name}: stamp -> controller median {s['median'] * 1e3:.1f} ms, p99 {s['p99'] * 1e3:.1f} ms, "
               f"max {s['max'] * 1e3:.1f} ms")
-    print(f"  simulator real-time factor {r['ros_timing']['real_time_factor']:.2f}, late steps {r['ros_timing']['late_steps']}")
+    timing = r["ros_timing"]
+    print(f"  simulator real-time factor {timing['real_time_factor']:.2f}, late steps {timing['late_steps']}")
     if args.json:
         args.json.parent.mkdir(parents=True, exist_ok=True)
         args.json.write_text(json.dumps(r, indent=2) + "\n")

@@ -28,7 +28,7 @@ def test_defaults_match_the_paper_and_the_environment():
     ({"topics": {"odom": "joint_states"}}, "each needs its own"),
     ({"estop": {"required": "maybe"}}, "estop.required = 'maybe' is not allowed"),
     ({"payload": {"calibration": "/no/such.yaml"}}, "payload.calibration"),
-    ({"potentiometer": {"lift": {"raw": [1, 2, 2], "rad": [0, 0.1, 0.2]}}}, "strictly increasing or strictly decreasing"),
+    ({"potentiometer": {"lift": {"raw": [1, 2, 2], "rad": [0, 0.1, 0.2]}}}, "strictly increasing or strictly"),
     ({"potentiometer": {"lift": {"raw": [1, 2], "rad": [0, 0.1, 0.2]}}}, "same length"),
     ({"potentiometer": {"wrist": None}}, "lift and/or tilt"),
     ({"control": {"speed": 1}}, "unknown robot config key(s) ['control.speed']"),

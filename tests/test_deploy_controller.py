@@ -62,7 +62,8 @@ def test_limiter_clamps_to_ranges_and_rates():
     limiter = CommandLimiter(RobotNodeConfig().limits, PERIOD)
     out = limiter.clamp(np.array([5.0, 9.0, -9.0]), np.array([0.0, 0.2, 0.0]))
     assert out == pytest.approx([0.1, 0.3, -0.25])  # speed limit; lift rate 0.4 rad/s; tilt rate 1 rad/s
-    assert limiter.clamp(np.array([np.nan, np.inf, -np.inf]), np.array([0.05, 0.2, 0.1])) == pytest.approx([0.05, 0.2, 0.1])
+    last = np.array([0.05, 0.2, 0.1])
+    assert limiter.clamp(np.array([np.nan, np.inf, -np.inf]), last) == pytest.approx(last)
     assert np.all(np.isfinite(limiter.clamp(np.array([np.nan] * 3), None)))
 
 
@@ -227,3 +228,26 @@ def test_the_controller_scoops_the_simulated_pile_and_records_it(tmp_path):
     assert a["penetrating"].max() == 1.0  # judged from the range to the pile
     summary = summarize_episodes(load_episodes([tmp_path]))
     assert summary["episodes"] == 1 and summary["mass_kg_mean"] > 0.5  # the payload estimate
+
+
+def test_a_scoop_starts_from_the_start_pose_when_the_arm_is_there_else_from_where_it_is():
+    core = make_core()
+    feed_all(core, 0.0, lift=TASK.robot.start_lift_rad + 0.006)  # the arm sags a little below its setpoint
+    core.scoop(True, 0.0)
+    core.update(0.0)
+    assert core.episode.targets[1] == pytest.approx(TASK.robot.start_lift_rad, abs=1e-6)  # heuristic: lift kept
+    core.scoop(False, 0.1)
+    feed_all(core, 0.2, lift=0.0, tilt=0.5)
+    core.scoop(True, 0.2)
+    command = core.update(0.2)
+    assert command.lift_rad == pytest.approx(0.0, abs=0.1) and command.tilt_rad == pytest.approx(0.5, abs=0.25)
+
+
+def test_payload_from_a_topic_replaces_the_torque_estimate():
+    core = make_core(robot_config_from_dict({"payload": {"source": "topic"}}))
+    assert "payload_mass" in core.watchdog.names and "bucket_torque" not in core.watchdog.names
+    feed_all(core, 0.0)
+    assert core.payload_mass(3.5, 0.0)
+    assert core._measurements().mass_kg == 3.5
+    assert not core.payload_mass(float("nan"), 0.1)
+    assert core.update(0.1).mode == "fault"

@@ -69,14 +69,20 @@ def test_tampered_weights_are_refused(tmp_path):
 
 def test_train_command_smoke_run_writes_the_run_directory(tmp_path):
     out = tmp_path / "run"
-    assert main(["train", "--episodes", "8", "--checkpoint-every", "4", "--out", str(out), *FAST]) == 0
+    assert main(["train", "--episodes", "8", "--checkpoint-every", "4", "--eval-every", "4", "--eval-episodes", "2",
+                 "--out", str(out), *FAST]) == 0
     info = json.loads((out / "run.json").read_text())
     assert info["status"] == "finished" and info["seed"] == 0 and info["autoscoop_version"]
     rows = list(csv.DictReader(open(out / "episodes.csv")))
     assert len(rows) == 8 and {"reward", "fill_factor", "cycle_time_s", "success"} <= set(rows[0])
     for name in ("config.yaml", "hyperparams.yaml", "policy.zip", "policy.safetensors", "policy.json",
-                 "learning_curve.png"):
+                 "last.safetensors", "learning_curve.png", "evaluations.csv"):
         assert (out / name).is_file(), name
+    evaluations = list(csv.DictReader(open(out / "evaluations.csv")))
+    assert [int(r["episode"]) for r in evaluations] == [4, 8]
+    best = max(float(r["delivered_fill"]) for r in evaluations)
+    assert info["best_score"] == pytest.approx(best)
+    assert json.loads((out / "policy.json").read_text())["selected_at_episode"] == info["best_episode"]
     assert any((out / "tb").rglob("events.out.tfevents.*"))
     policy = load_policy(str(out), ScoopConfig())
     assert policy.act(np.zeros(12, dtype=np.float32)).shape == (3,)

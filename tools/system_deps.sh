@@ -3,7 +3,7 @@
 # Off-screen rendering: libosmesa6. ROS 1 (the ROS node tests): rospy, rosmaster and messages.
 set -euo pipefail
 
-PACKAGES=(libosmesa6)
+PACKAGES=(libosmesa6 python3-rospy python3-rosmaster python3-std-msgs python3-sensor-msgs python3-geometry-msgs python3-nav-msgs)
 
 missing=()
 for pkg in "${PACKAGES[@]}"; do

@@ -18,14 +18,14 @@ from autoscoop.config import ConfigError, ScoopConfig, parse_set_args
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
-    parser = subparsers.add_parser("ros", help="ROS 1 nodes: the controller on the robot, the simulator behind its topics",
+    parser = subparsers.add_parser("ros", help="ROS 1 nodes: the controller on the robot, the simulator behind it",
                                    description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     nodes = parser.add_subparsers(dest="node", metavar="NODE")
 
     controller = nodes.add_parser("controller", help="run a policy on the robot's topics, with watchdog and limits",
                                   description=_CONTROLLER_DOC, formatter_class=argparse.RawDescriptionHelpFormatter)
     controller.add_argument("--policy", default="default",
-                            help="default (shipped policy), heuristic, a .onnx file (onnxruntime only) or a policy file")
+                            help="default (shipped), heuristic, a .onnx file (onnxruntime only) or a policy file")
     controller.add_argument("--config", type=Path, help="the robot's YAML: limits, timeouts, calibration, topics")
     controller.add_argument("--record", type=Path, metavar="DIR", help="write one episode record per scoop here")
     controller.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
@@ -60,8 +60,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 _CONTROLLER_DOC = """Run a policy on the robot through ROS 1.
 
 Subscribes: joint_states (sensor_msgs/JointState: lift, tilt), odom (nav_msgs/Odometry), pile_range
-(sensor_msgs/Range), bucket_torque (std_msgs/Float64), estop (std_msgs/Bool), scoop (std_msgs/Bool:
-true starts a scoop, false ends it). Publishes: cmd_vel (geometry_msgs/Twist), lift_controller/command
+(sensor_msgs/Range), bucket_torque (std_msgs/Float64; or payload_mass in kg with payload.source: topic),
+estop (std_msgs/Bool), scoop (std_msgs/Bool: true starts a scoop, false ends it). Publishes: cmd_vel (geometry_msgs/Twist), lift_controller/command
 and tilt_controller/command (std_msgs/Float64, rad), ~status (std_msgs/String).
 
 Every command is clamped to the configured limits. Any input older than control.input_timeout_s, or

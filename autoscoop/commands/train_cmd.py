@@ -17,6 +17,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument("--seed", type=int, default=0, help="random seed")
     parser.add_argument("--n-envs", type=int, default=1, help="parallel simulators in subprocesses (default 1)")
     parser.add_argument("--checkpoint-every", type=int, default=50, help="episodes between checkpoints (default 50)")
+    parser.add_argument("--eval-every", type=int, default=50,
+                        help="episodes between evaluations of the deterministic policy; the best is kept (0: keep the last)")
+    parser.add_argument("--eval-episodes", type=int, default=10, help="episodes per evaluation (default 10)")
     parser.add_argument("--out", type=Path, help="run directory (default runs/ALGO-sSEED-TIME)")
     parser.add_argument("--resume", type=Path, metavar="RUN_DIR", help="continue an interrupted run")
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
@@ -30,13 +33,16 @@ def run(args: argparse.Namespace) -> int:
     if args.resume:
         run_dir = resume(args.resume, progress=not args.no_progress)
     else:
-        if args.episodes < 1 or args.n_envs < 1 or args.checkpoint_every < 1:
-            raise ValueError("--episodes, --n-envs and --checkpoint-every must be at least 1")
+        if args.episodes < 1 or args.n_envs < 1 or args.checkpoint_every < 1 or args.eval_episodes < 1:
+            raise ValueError("--episodes, --n-envs, --checkpoint-every and --eval-episodes must be at least 1")
+        if args.eval_every < 0:
+            raise ValueError("--eval-every must be 0 (off) or more")
         overrides = load_yaml(args.config).to_dict() if args.config else {}
         flat = {f"{section}.{key}": value for section, values in overrides.items() for key, value in values.items()}
         flat.update(parse_set_args(args.overrides))
         run_dir = train(TrainArgs(algo=args.algo, episodes=args.episodes, seed=args.seed, n_envs=args.n_envs,
                                   overrides=flat, out=args.out, checkpoint_every=args.checkpoint_every,
+                                  eval_every=args.eval_every, eval_episodes=args.eval_episodes,
                                   progress=not args.no_progress))
     print(f"run directory: {run_dir}")
     return 0

@@ -41,8 +41,9 @@ from autoscoop.records import EpisodeRecord
 from autoscoop.reward import is_penetrating
 from autoscoop.state import CommandLimits, Measurements, advance_targets, build_state, validate_action
 
-SENSOR_INPUTS = ("joint_states", "odom", "pile_range", "bucket_torque")
-"""Inputs the watchdog requires fresh (``estop`` too when ``estop.required``)."""
+SENSOR_INPUTS = ("joint_states", "odom", "pile_range")
+"""Inputs the watchdog always requires fresh; also ``bucket_torque`` or ``payload_mass`` (per
+``payload.source``), and ``estop`` when ``estop.required``."""
 WAKE_SLACK_S = 1e-4
 """A wake-up this close before a deadline counts as on time (timers fire a little early or late)."""
 
@@ -115,7 +116,8 @@ class ControllerCore:
         self.task_limits = CommandLimits(max_speed_mps=self.task.robot.max_speed_mps)
         self.period_s = config.control.control_period_s
         self.limiter = CommandLimiter(config.limits, self.period_s)
-        inputs = SENSOR_INPUTS + (("estop",) if config.estop.required else ())
+        mass_input = "payload_mass" if config.payload.source == "topic" else "bucket_torque"
+        inputs = SENSOR_INPUTS + (mass_input,) + (("estop",) if config.estop.required else ())
         self.watchdog = InputWatchdog(inputs, config.control.input_timeout_s)
         self.mass_from_torque = mass_from_torque or PayloadMass(config.payload.calibration,
                                                                 config.payload.empty_below_kg)
@@ -129,6 +131,7 @@ class ControllerCore:
         self.speed_mps = math.nan
         self.range_m = math.nan
         self.torque_nm = math.nan
+        self.reported_mass_kg = math.nan
         self.estop_engaged = False
         self.episode: _Episode | None = None
         self.episodes_done = 0
@@ -171,12 +174,9 @@ class ControllerCore:
 
     def odometry(self, speed_mps: float, now: float) -> bool:
         """``nav_msgs/Odometry``: forward speed, m/s."""
-        limit = self.config.sensors.max_speed_reading_mps
-        if not math.isfinite(speed_mps) or abs(speed_mps) > limit:
-            self.watchdog.invalid("odom", f"speed {speed_mps} m/s is not within +-{limit:g} m/s")
+        if not self._within("odom", speed_mps, self.config.sensors.max_speed_reading_mps, "m/s", now):
             return False
         self.speed_mps = float(speed_mps)
-        self.watchdog.valid("odom", now)
         return True
 
     def pile_range(self, range_m: float, now: float, min_range_m: float = 0.0, max_range_m: float = math.inf) -> bool:
@@ -194,12 +194,24 @@ class ControllerCore:
 
     def bucket_torque(self, torque_nm: float, now: float) -> bool:
         """``std_msgs/Float64``: torque at the tilt joint, N*m."""
-        limit = self.config.sensors.max_torque_nm
-        if not math.isfinite(torque_nm) or abs(torque_nm) > limit:
-            self.watchdog.invalid("bucket_torque", f"torque {torque_nm} N*m is not within +-{limit:g} N*m")
+        if not self._within("bucket_torque", torque_nm, self.config.sensors.max_torque_nm, "N*m", now):
             return False
         self.torque_nm = float(torque_nm)
-        self.watchdog.valid("bucket_torque", now)
+        return True
+
+    def payload_mass(self, mass_kg: float, now: float) -> bool:
+        """``std_msgs/Float64``: mass in the bucket, kg, as a load cell (or the simulator) reports it."""
+        if not self._within("payload_mass", mass_kg, 5.0 * self.config.payload.rated_load_kg, "kg", now):
+            return False
+        self.reported_mass_kg = float(mass_kg)
+        return True
+
+    def _within(self, name: str, value: float, limit: float, unit: str, now: float) -> bool:
+        """Mark input ``name`` valid if ``value`` is finite and within +-``limit``, else bad."""
+        if not math.isfinite(value) or abs(value) > limit:
+            self.watchdog.invalid(name, f"{value} {unit} is not within +-{limit:g} {unit}")
+            return False
+        self.watchdog.valid(name, now)
         return True
 
     def estop(self, engaged: bool, now: float) -> None:
@@ -267,7 +279,10 @@ class ControllerCore:
 
     # ---------------------------------------------------------------- internals
     def _measurements(self) -> Measurements:
-        mass = float(self.mass_from_torque(self.torque_nm, self.lift_rad, self.tilt_rad))
+        if self.config.payload.source == "topic":
+            mass = max(self.reported_mass_kg, 0.0)
+        else:
+            mass = float(self.mass_from_torque(self.torque_nm, self.lift_rad, self.tilt_rad))
         return Measurements(mass_kg=mass if math.isfinite(mass) else 0.0, pile_distance_m=self.range_m,
                             speed_mps=self.speed_mps, lift_rad=self.lift_rad, tilt_rad=self.tilt_rad)
 
@@ -320,7 +335,8 @@ class ControllerCore:
     def _start_episode(self, now: float) -> None:
         self._start_requested = False
         self.policy.reset()
-        targets = np.clip([0.0, self.lift_rad, self.tilt_rad], self.task_limits.low, self.task_limits.high)
+        arm = self._start_arm()
+        targets = np.clip([0.0, *arm], self.task_limits.low, self.task_limits.high)
         index = self.episodes_done
         meta = {
             "source": "ros controller", "policy": self.policy_name, "autoscoop_version": __version__,
@@ -332,9 +348,19 @@ class ControllerCore:
             "robot_config": self.config.to_dict(), "config": self.task.to_dict(),
         }
         self.episode = _Episode(index=index, start=now, record=EpisodeRecord(meta=meta), targets=targets)
-        self.last_command = np.array([0.0 if self.last_command is None else self.last_command[0],
-                                      self.lift_rad, self.tilt_rad])
-        self.log("info", f"scoop {index} started ({self.policy_name})")
+        self.last_command = np.array([0.0 if self.last_command is None else self.last_command[0], *targets[1:]])
+        self.log("info", f"scoop {index} started ({self.policy_name}), arm targets from lift {targets[1]:.3f}, "
+                         f"tilt {targets[2]:.3f} rad")
+
+    def _start_arm(self) -> tuple[float, float]:
+        """Where the scoop's arm targets start: the task's start pose (the setpoints the robot holds the arm
+        at before a scoop, as in training; the arm sags a little below them) when the measured angles are
+        within ``control.start_pose_tolerance_rad`` of it, else the measured angles."""
+        pose = (self.task.robot.start_lift_rad, self.task.robot.start_tilt_rad)
+        tolerance = self.config.control.start_pose_tolerance_rad
+        if abs(self.lift_rad - pose[0]) <= tolerance and abs(self.tilt_rad - pose[1]) <= tolerance:
+            return pose
+        return self.lift_rad, self.tilt_rad
 
     def _append_step(self, now: float, state: np.ndarray, action: np.ndarray) -> None:
         nan = math.nan

@@ -42,6 +42,10 @@ class ControlSection(_Section):
     control_period_s: float = _field(0.25, "s", "time between policy steps (the policy's training period)", 0.02, 1.0)
     input_timeout_s: float = _field(0.5, "s", "an input older than this stops the robot (watchdog)", 0.02, 5.0)
     episode_s: float = _field(8.0, "s", "a scoop ends after this long (the training episode limit)", 0.5, 600.0)
+    start_pose_tolerance_rad: float = _field(0.05, "rad", "a scoop's arm targets start at the task's start pose "
+                                                          "(robot.start_lift_rad, start_tilt_rad) when both joints "
+                                                          "are this close to it, else at the measured angles",
+                                             0.0, 1.5)
     auto_start: bool = _field(False, "-", "start the first scoop as soon as every input is fresh, "
                                           "without waiting for the scoop topic", choices=_BOOL)
 
@@ -93,9 +97,12 @@ class EstopSection(_Section):
 
 @dataclass(frozen=True)
 class PayloadSection(_Section):
-    """Payload mass from the bucket joint's torque (autoscoop.payload, paper eq. 4)."""
+    """The state's payload mass: from the bucket joint's torque (autoscoop.payload, paper eq. 4), or reported."""
 
     _section = "payload"
+    source: str = _field("torque", "-", "mass from bucket_torque through the estimator (torque), or as reported "
+                                        "on payload_mass by a load cell or the simulator (topic)",
+                         choices=("torque", "topic"))
     calibration: str = _field("", "-", "payload calibration YAML (autoscoop payload calibrate); empty: nominal")
     rated_load_kg: float = _field(7.0, "kg", "rated bucket load: the state's w = mass / rated load", 0.1, 100.0)
     empty_below_kg: float = _field(0.35, "kg", "estimates below this read 0: the estimate's swing with an empty "
@@ -104,14 +111,15 @@ class PayloadSection(_Section):
 
 TOPIC_DEFAULTS = {
     "joint_states": "joint_states", "odom": "odom", "pile_range": "pile_range", "bucket_torque": "bucket_torque",
-    "estop": "estop", "scoop": "scoop", "cmd_vel": "cmd_vel", "lift_command": "lift_controller/command",
-    "tilt_command": "tilt_controller/command",
+    "payload_mass": "payload_mass", "estop": "estop", "scoop": "scoop", "cmd_vel": "cmd_vel",
+    "lift_command": "lift_controller/command", "tilt_command": "tilt_controller/command",
 }
 _TOPIC_DOCS = {
     "joint_states": "sensor_msgs/JointState in: lift and tilt positions (rad, or raw potentiometer readings)",
     "odom": "nav_msgs/Odometry in: twist.twist.linear.x is the forward speed (m/s)",
     "pile_range": "sensor_msgs/Range in: distance from the bucket tip to the pile (m)",
     "bucket_torque": "std_msgs/Float64 in: torque at the tilt joint (N*m)",
+    "payload_mass": "std_msgs/Float64 in: mass in the bucket (kg), used when payload.source = topic",
     "estop": "std_msgs/Bool in: true stops the robot until false",
     "scoop": "std_msgs/Bool in: true starts a scoop, false ends it",
     "cmd_vel": "geometry_msgs/Twist out: linear.x forward speed (m/s)",
@@ -129,6 +137,7 @@ class TopicsSection:
     odom: str = TOPIC_DEFAULTS["odom"]
     pile_range: str = TOPIC_DEFAULTS["pile_range"]
     bucket_torque: str = TOPIC_DEFAULTS["bucket_torque"]
+    payload_mass: str = TOPIC_DEFAULTS["payload_mass"]
     estop: str = TOPIC_DEFAULTS["estop"]
     scoop: str = TOPIC_DEFAULTS["scoop"]
     cmd_vel: str = TOPIC_DEFAULTS["cmd_vel"]
@@ -225,7 +234,8 @@ class RobotNodeConfig:
             low, high = getattr(lim, f"{joint}_min_rad"), getattr(lim, f"{joint}_max_rad")
             if not low < high:
                 raise ConfigError(f"limits.{joint}_min_rad = {low} must be below limits.{joint}_max_rad = {high}")
-        for key, value in (("sensors.lift_joint", self.sensors.lift_joint), ("sensors.tilt_joint", self.sensors.tilt_joint),
+        for key, value in (("sensors.lift_joint", self.sensors.lift_joint),
+                           ("sensors.tilt_joint", self.sensors.tilt_joint),
                            ("payload.calibration", self.payload.calibration)):
             if not isinstance(value, str):
                 raise ConfigError(f"{key} = {value!r} must be a string")
@@ -246,8 +256,9 @@ class RobotNodeConfig:
     def to_dict(self) -> dict[str, Any]:
         """Plain nested dict, as in the YAML."""
         out: dict[str, Any] = {name: dataclasses.asdict(getattr(self, name)) for name in SECTIONS}
+        pots = (("lift", self.lift_potentiometer), ("tilt", self.tilt_potentiometer))
         out["potentiometer"] = {joint: (None if cal is None else {"raw": list(cal.raw), "rad": list(cal.rad)})
-                                for joint, cal in (("lift", self.lift_potentiometer), ("tilt", self.tilt_potentiometer))}
+                                for joint, cal in pots}
         return out
 
     def describe(self) -> str:

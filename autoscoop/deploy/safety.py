@@ -36,13 +36,16 @@ class InputWatchdog:
         self._bad: dict[str, str] = {}
 
     def valid(self, name: str, now: float) -> None:
-        """A valid reading of ``name`` arrived at ``now``."""
+        """A valid reading of ``name`` arrived at ``now`` (an input not watched is ignored)."""
+        if name not in self._last_valid:
+            return
         self._last_valid[name] = now
         self._bad.pop(name, None)
 
     def invalid(self, name: str, why: str) -> None:
         """A reading of ``name`` failed its checks (``why`` says how); the input is bad until the next valid one."""
-        self._bad[name] = why
+        if name in self._last_valid:
+            self._bad[name] = why
 
     def problems(self, now: float) -> list[str]:
         """Why the inputs are not all healthy at ``now``; empty when they are."""

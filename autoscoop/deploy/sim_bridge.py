@@ -5,9 +5,10 @@ control period shortened to the sensor period (one or a few physics steps, about
 speed command is the wheels' target at once; a received joint position command starts the servo's
 setpoint moving toward it as the environment moves it: at ``(command - setpoint) / control period``,
 bounded by the actuator's speed, until it gets there or the next command arrives. With one command
-per control period this is exactly the environment's servo, so only the topics' timing differs. Each step yields the readings the robot's sensors give (joint positions, wheel-odometry
-speed, range from the tip to the pile, bucket torque), with Gaussian noise, and the episode ends as
-in evaluation (success or the time limit), with the same metrics.
+per control period this is exactly the environment's servo, so only the topics' timing differs.
+Each step yields the readings the robot's sensors give (joint positions, wheel-odometry speed, range
+from the tip to the pile, bucket torque), with Gaussian noise, and the episode ends as in evaluation
+(success or the time limit), with the same metrics.
 """
 
 from __future__ import annotations
@@ -64,6 +65,7 @@ class SensorReadings:
         speed_mps: forward speed from wheel odometry, m/s.
         range_m: distance from the bucket tip to the pile, m.
         torque_nm: torque at the tilt (bucket) joint, N*m.
+        payload_kg: mass of the particles inside the bucket, kg (what a perfect load cell would report).
         chassis_xyz_m: chassis centre in the world (pile) frame, m (for the odometry pose).
         chassis_quat_wxyz: chassis orientation, unit quaternion (w, x, y, z).
     """
@@ -74,6 +76,7 @@ class SensorReadings:
     speed_mps: float
     range_m: float
     torque_nm: float
+    payload_kg: float
     chassis_xyz_m: tuple[float, float, float]
     chassis_quat_wxyz: tuple[float, float, float, float]
 
@@ -192,7 +195,8 @@ class SimBridge:
         return SensorReadings(
             time_s=sim.elapsed_s, joint_names=(self.robot.sensors.lift_joint, self.robot.sensors.tilt_joint),
             joint_positions=(float(positions[0]), float(positions[1])), speed_mps=float(speed), range_m=distance,
-            torque_nm=float(torque), chassis_xyz_m=tuple(float(v) for v in position),
+            torque_nm=float(torque), payload_kg=float(info.get("mass_in_bucket_kg", 0.0)),
+            chassis_xyz_m=tuple(float(v) for v in position),
             chassis_quat_wxyz=tuple(float(v) for v in quat))
 
     def result(self) -> EpisodeResult:
@@ -265,6 +269,7 @@ def run_without_ros(bridge: SimBridge, core: Any, seed: int, start_s: float = 0.
         core.odometry(r.speed_mps, now)
         core.pile_range(r.range_m, now, 0.0, 4.0)
         core.bucket_torque(r.torque_nm, now)
+        core.payload_mass(r.payload_kg, now)
         return now
 
     now = feed(readings)

@@ -1,7 +1,8 @@
 """``autoscoop ros controller``: the controller as a ROS 1 node (rospy front end of ControllerCore).
 
 Subscribes (relative names, remappable with ``name:=new``): ``joint_states``, ``odom``,
-``pile_range``, ``bucket_torque``, ``estop``, ``scoop``. Publishes: ``cmd_vel``,
+``pile_range``, ``bucket_torque`` (or ``payload_mass`` with ``payload.source: topic``), ``estop``,
+``scoop``. Publishes: ``cmd_vel``,
 ``lift_controller/command``, ``tilt_controller/command``, and ``~status`` (std_msgs/String, latched:
 the mode and why the robot is stopped). All logic is in :mod:`autoscoop.deploy.controller`; this
 module converts messages and keeps time.
@@ -72,6 +73,9 @@ def run_controller_node(core: ControllerCore, argv: list[str] | None = None, nod
     def on_torque(msg: Float64) -> None:
         feed(lambda now: core.bucket_torque(msg.data, now))
 
+    def on_mass(msg: Float64) -> None:
+        feed(lambda now: core.payload_mass(msg.data, now))
+
     def on_estop(msg: Bool) -> None:
         feed(lambda now: core.estop(msg.data, now), always_wake=True)
 
@@ -87,6 +91,8 @@ def run_controller_node(core: ControllerCore, argv: list[str] | None = None, nod
         rospy.Subscriber(topics.odom, Odometry, on_odom, queue_size=10, tcp_nodelay=True),
         rospy.Subscriber(topics.pile_range, Range, on_range, queue_size=10, tcp_nodelay=True),
         rospy.Subscriber(topics.bucket_torque, Float64, on_torque, queue_size=10, tcp_nodelay=True),
+        *([rospy.Subscriber(topics.payload_mass, Float64, on_mass, queue_size=10, tcp_nodelay=True)]
+          if core.config.payload.source == "topic" else []),
         rospy.Subscriber(topics.estop, Bool, on_estop, queue_size=10, tcp_nodelay=True),
         rospy.Subscriber(topics.scoop, Bool, on_scoop, queue_size=10, tcp_nodelay=True),
     ]
