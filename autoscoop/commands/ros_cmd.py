@@ -61,8 +61,9 @@ _CONTROLLER_DOC = """Run a policy on the robot through ROS 1.
 
 Subscribes: joint_states (sensor_msgs/JointState: lift, tilt), odom (nav_msgs/Odometry), pile_range
 (sensor_msgs/Range), bucket_torque (std_msgs/Float64; or payload_mass in kg with payload.source: topic),
-estop (std_msgs/Bool), scoop (std_msgs/Bool: true starts a scoop, false ends it). Publishes: cmd_vel (geometry_msgs/Twist), lift_controller/command
-and tilt_controller/command (std_msgs/Float64, rad), ~status (std_msgs/String).
+estop (std_msgs/Bool), scoop (std_msgs/Bool: true starts a scoop, false ends it). Publishes: cmd_vel
+(geometry_msgs/Twist), lift_controller/command and tilt_controller/command (std_msgs/Float64, rad),
+~status (std_msgs/String).
 
 Every command is clamped to the configured limits. Any input older than control.input_timeout_s, or
 not finite, or out of range -> zero velocity and the arm held, until the inputs are healthy again;
