@@ -127,28 +127,3 @@ def inside_bucket(points_in_bucket_frame: np.ndarray) -> np.ndarray:
     cross = edges[None, :, 0] * rel_z - edges[None, :, 1] * rel_x
     return np.all(cross <= 0.0, axis=1) & (np.abs(p[:, 1]) <= BUCKET_INNER_HALF_WIDTH_M)
 
-
-def heaped_on_bucket(points_in_bucket_frame: np.ndarray, heap_height_m: float) -> np.ndarray:
-    """Which points lie in the heap above the bucket's mouth (not inside, but carried by it).
-
-    The heap is the prism on the mouth (the edge from the top of the back plate to the cutting
-    edge), ``heap_height_m`` deep along the mouth's outward normal, within the bucket's width.
-
-    Args:
-        points_in_bucket_frame: (n, 3) points in the bucket frame, metres.
-        heap_height_m: depth of the heap zone, metres (a particle diameter is a good choice).
-
-    Returns:
-        (n,) boolean mask.
-    """
-    p = np.asarray(points_in_bucket_frame, dtype=float)
-    top, tip = BUCKET_INSIDE_POLYGON_M[1], BUCKET_INSIDE_POLYGON_M[2]
-    along = tip - top
-    length = float(np.hypot(*along))
-    along /= length
-    normal = np.array([-along[1], along[0]])  # points away from the bucket's inside
-    rel = p[:, [0, 2]] - top
-    s = rel @ along
-    h = rel @ normal
-    return (s >= 0.0) & (s <= length) & (h > 0.0) & (h <= heap_height_m) & \
-        (np.abs(p[:, 1]) <= BUCKET_INNER_HALF_WIDTH_M)

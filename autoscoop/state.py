@@ -144,6 +144,14 @@ def advance_targets(targets: np.ndarray, action: np.ndarray, limits: CommandLimi
     return np.clip(np.asarray(targets, dtype=np.float64) + a * (high - low), low, high)
 
 
+def servo_rate(target: np.ndarray | float, setpoint: np.ndarray | float, period_s: float,
+               max_speed: np.ndarray | float) -> np.ndarray:
+    """How fast a linear actuator's setpoint moves toward its target: the whole way within one period,
+    no faster than the actuator's speed (rad/s; arrays element-wise)."""
+    speed = np.asarray(max_speed, dtype=float)
+    return np.clip((np.asarray(target, dtype=float) - np.asarray(setpoint, dtype=float)) / period_s, -speed, speed)
+
+
 STATE_CENTRE = np.array([0.5, 1.15, 0.15, 0.95, 0.2, 0.15, 0.0, 0.1, 0.2, 0.0, 0.0, 0.0], dtype=np.float32)
 STATE_SCALE = np.array([0.5, 0.1, 0.15, 0.05, 0.1, 0.15, 0.1, 0.2, 0.7, 0.05, 0.1, 0.25], dtype=np.float32)
 """Fixed normalisation of the state for neural networks: (state - centre) / scale is about [-1, 1]

@@ -25,7 +25,7 @@ import os
 import shutil
 import sys
 import time
-from dataclasses import asdict, dataclass, field
+from dataclasses import dataclass, field
 from functools import partial
 from importlib import resources
 from pathlib import Path
@@ -229,18 +229,14 @@ class PolicyEvaluator:
 
     def evaluate(self, model: Any, episode: int, logger: Any) -> float:
         """Run the evaluation; save the policy if it is the best so far; return its score."""
-        fills, successes, cycles = [], [], []
-        for i in range(self.episodes):
-            obs, _ = self.env.reset(seed=self.SEED + i)
-            while True:
-                action, _ = model.predict(obs, deterministic=True)
-                obs, _, terminated, truncated, info = self.env.step(action)
-                if terminated or truncated:
-                    break
-            fills.append(info["fill_factor"])
-            successes.append(bool(info["success"]))
-            if info["success"]:
-                cycles.append(info["cycle_time_s"])
+        from autoscoop.agents.loading import SB3Policy  # noqa: PLC0415 - loading imports this module lazily
+        from autoscoop.evaluate import run_episode  # noqa: PLC0415
+
+        policy = SB3Policy(model, name="training")
+        results = [run_episode(self.env, policy, self.SEED + i) for i in range(self.episodes)]
+        fills = [r.fill_factor for r in results]
+        successes = [r.success for r in results]
+        cycles = [r.cycle_time_s for r in results if r.success]
         score = float(np.mean([f if s else 0.0 for f, s in zip(fills, successes)]))
         row = {"episode": episode, "delivered_fill": round(score, 4), "fill_factor": round(float(np.mean(fills)), 4),
                "success": round(float(np.mean(successes)), 3),
@@ -332,7 +328,6 @@ def resume(run_dir: Path, progress: bool = True) -> Path:
     checkpoint = run_dir / "checkpoint"
     if not (checkpoint / "state.json").exists():
         shutil.rmtree(checkpoint, ignore_errors=True)
-        _truncate_csv(run_dir / "episodes.csv", 0)
         (run_dir / "episodes.csv").unlink(missing_ok=True)
         return _run(run_dir, config, spec, info, done=0, model=None, progress=progress)
     state = json.loads((checkpoint / "state.json").read_text())
@@ -399,7 +394,3 @@ def _run(run_dir: Path, config: ScoopConfig, spec: dict[str, Any], info: dict[st
         pass
     return run_dir
 
-
-def args_as_dict(args: TrainArgs) -> dict[str, Any]:
-    """TrainArgs as plain data (paths as strings)."""
-    return {k: (str(v) if isinstance(v, Path) else v) for k, v in asdict(args).items()}

@@ -25,7 +25,7 @@ from autoscoop.config import ScoopConfig
 from autoscoop.deploy.robot_config import RobotNodeConfig
 from autoscoop.envs.scoop import make_scoop_env
 from autoscoop.evaluate import EpisodeResult
-from autoscoop.state import CommandLimits
+from autoscoop.state import CommandLimits, advance_targets, servo_rate
 
 MIN_SENSOR_PERIOD_S = 0.02
 """Sensors are published at most this often: every physics step, or every few when steps are shorter."""
@@ -141,8 +141,8 @@ class SimBridge:
             return
         goal = float(np.clip(position_rad, self.limits.low[index], self.limits.high[index]))
         self._goal[index] = goal
-        rate = (goal - self._setpoints()[index - 1]) / self.servo_period_s
-        self._rate[index - 1] = float(np.clip(rate, -self._servo_speed[index - 1], self._servo_speed[index - 1]))
+        self._rate[index - 1] = float(servo_rate(goal, self._setpoints()[index - 1], self.servo_period_s,
+                                                 self._servo_speed[index - 1]))
 
     def step(self, command: np.ndarray | None = None) -> SensorReadings:
         """Advance one sensor period; the new readings. After the episode ends, steps do nothing.
@@ -164,7 +164,7 @@ class SimBridge:
             if abs(remaining) > abs(move) and np.sign(remaining) == np.sign(move):
                 desired[k + 1] = setpoints[k] + move
         action = np.clip((desired - self._targets) / self._span, -1.0, 1.0)
-        self._targets = np.clip(self._targets + action * self._span, self.limits.low, self.limits.high)
+        self._targets = advance_targets(self._targets, action, self.limits)
         _, _, terminated, truncated, self._info = self.env.step(action)
         self.steps += 1
         self.done = bool(terminated or truncated)

@@ -122,10 +122,9 @@ class ScoopEnv(gym.Env):
         self._targets = state_mod.advance_targets(self._targets, action, self.limits)
         cfg = self.config
         period = cfg.env.control_period_s
-        lift_rate = np.clip((self._targets[1] - self.sim.lift_setpoint_rad) / period,
-                            -cfg.robot.lift_speed_radps, cfg.robot.lift_speed_radps)
-        tilt_rate = np.clip((self._targets[2] - self.sim.tilt_setpoint_rad) / period,
-                            -cfg.robot.tilt_speed_radps, cfg.robot.tilt_speed_radps)
+        lift_rate, tilt_rate = state_mod.servo_rate(
+            self._targets[1:], [self.sim.lift_setpoint_rad, self.sim.tilt_setpoint_rad], period,
+            [cfg.robot.lift_speed_radps, cfg.robot.tilt_speed_radps])
         self.sim.command(self._targets[0], lift_rate, tilt_rate)
         self.sim.step(cfg.substeps)
 

@@ -287,12 +287,6 @@ class ScoopSim:
         """(n,) mask of particles whose centre lies inside the bucket's volume (in the bucket's own frame)."""
         return kinematics.inside_bucket(self.particles_in_bucket_frame())
 
-    def particles_carried(self) -> tuple[np.ndarray, np.ndarray]:
-        """Masks (inside the bucket, heaped on its mouth within one particle diameter), each (n,)."""
-        local = self.particles_in_bucket_frame()
-        inside = kinematics.inside_bucket(local)
-        heaped = ~inside & kinematics.heaped_on_bucket(local, 2.0 * self.config.pile.radius_m)
-        return inside, heaped
 
     def set_particle(self, index: int, position: np.ndarray) -> None:
         """Teleport one particle (at rest) to a world position; for scenes with sleeping disabled."""
