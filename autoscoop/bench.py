@@ -24,13 +24,18 @@ from autoscoop.config import ScoopConfig
 from autoscoop.envs.scoop import make_scoop_env
 
 
-def pin_to_one_core() -> str:
-    """Restrict this process to a single CPU core where the OS allows it; say what was done."""
+def pin_to_one_core() -> tuple[str, set[int] | None]:
+    """Restrict this process to a single CPU core where the OS allows it.
+
+    Returns:
+        What was done, and the previous set of cores (to restore), or ``None``.
+    """
     if hasattr(os, "sched_setaffinity"):
-        core = min(os.sched_getaffinity(0))
+        previous = os.sched_getaffinity(0)
+        core = min(previous)
         os.sched_setaffinity(0, {core})
-        return f"pinned to core {core}"
-    return "not pinned (no sched_setaffinity on this OS)"
+        return f"pinned to core {core}", previous
+    return "not pinned (no sched_setaffinity on this OS)", None
 
 
 def measure_once(config: ScoopConfig, episodes: int, seed: int, env: Any = None) -> dict[str, float]:
@@ -75,12 +80,17 @@ def run_bench(config: ScoopConfig | None = None, episodes: int = 10, repeats: in
               progress: bool = True) -> dict[str, Any]:
     """Measure ``repeats`` times on one core; report the medians and every repeat."""
     config = config or ScoopConfig()
-    pinned = pin_to_one_core()
-    env = make_scoop_env(config)
-    for variant_seed in tqdm(range(config.pile.variants), desc="settling piles", disable=not progress):
-        env.reset(seed=variant_seed)
-    runs = [measure_once(config, episodes, seed, env) for _ in tqdm(range(repeats), desc="bench", disable=not progress)]
-    env.close()
+    pinned, previous_cores = pin_to_one_core()
+    try:
+        env = make_scoop_env(config)
+        for variant_seed in tqdm(range(config.pile.variants), desc="settling piles", disable=not progress):
+            env.reset(seed=variant_seed)
+        runs = [measure_once(config, episodes, seed, env)
+                for _ in tqdm(range(repeats), desc="bench", disable=not progress)]
+        env.close()
+    finally:
+        if previous_cores is not None:
+            os.sched_setaffinity(0, previous_cores)
     median = {key: statistics.median(run[key] for run in runs)
               for key in ("physics_steps_per_s", "env_steps_per_s", "realtime_factor")}
     return {

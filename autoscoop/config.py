@@ -231,14 +231,25 @@ def from_dict(data: Mapping[str, Any]) -> ScoopConfig:
     return ScoopConfig(**parts)
 
 
-def load_yaml(path: str | Path) -> ScoopConfig:
-    """Read a config from YAML (nested sections or dotted keys at the top level)."""
+def overrides_from_yaml(path: str | Path) -> dict[str, Any]:
+    """The keys a YAML file sets, as dotted keys (nested sections or dotted keys at the top level)."""
     data = yaml.safe_load(Path(path).read_text()) or {}
     if not isinstance(data, dict):
         raise ConfigError(f"{path}: expected a mapping of sections, got {type(data).__name__}")
-    dotted = {k: v for k, v in data.items() if "." in str(k)}
-    nested = {k: v for k, v in data.items() if "." not in str(k)}
-    return from_dict(nested).with_overrides(dotted)
+    out: dict[str, Any] = {}
+    for key, value in data.items():
+        if "." in str(key):
+            out[str(key)] = value
+        elif isinstance(value, dict):
+            out.update({f"{key}.{name}": item for name, item in value.items()})
+        else:
+            raise ConfigError(f"{path}: section {key!r} must be a mapping of keys; known sections: {list(SECTIONS)}")
+    return out
+
+
+def load_yaml(path: str | Path) -> ScoopConfig:
+    """Read a config from YAML: the defaults with the file's keys applied (validated)."""
+    return ScoopConfig().with_overrides(overrides_from_yaml(path))
 
 
 def save_yaml(config: ScoopConfig, path: str | Path) -> None:

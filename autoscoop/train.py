@@ -136,8 +136,9 @@ class EpisodeLogger(BaseCallback):
     """
 
     def __init__(self, run_dir: Path, episodes: int, done: int, spec: dict[str, Any], checkpoint_every: int,
-                 progress: bool, evaluator: "PolicyEvaluator | None" = None) -> None:
+                 progress: bool, evaluator: "PolicyEvaluator | None" = None, control_period_s: float = 0.25) -> None:
         super().__init__()
+        self.control_period_s = control_period_s
         self.run_dir, self.episodes, self.done = run_dir, episodes, done
         self.evaluator = evaluator
         self.spec, self.checkpoint_every = spec, checkpoint_every
@@ -175,7 +176,7 @@ class EpisodeLogger(BaseCallback):
         self.done += 1
         row = {"episode": self.done, "reward": self.returns.pop(env_index, 0.0), "fill_factor": info["fill_factor"],
                "cycle_time_s": info.get("cycle_time_s", math.nan), "success": int(info["success"]),
-               "steps": int(round(info["elapsed_s"] / 0.25)), "spilled": info["spilled"],
+               "steps": int(round(info["elapsed_s"] / self.control_period_s)), "spilled": info["spilled"],
                "physics_error": int(info["physics_error"]), "wall_s": round(time.time() - self.started, 2)}
         self.csv.writerow(row)
         self.csv_file.flush()
@@ -368,7 +369,8 @@ def _run(run_dir: Path, config: ScoopConfig, spec: dict[str, Any], info: dict[st
     started = time.time()
     evaluator = PolicyEvaluator(run_dir, config, info.get("eval_every", 50), info.get("eval_episodes", 10), info) \
         if info.get("eval_every", 50) > 0 else None
-    logger = EpisodeLogger(run_dir, episodes, done, spec, info["checkpoint_every"], progress, evaluator)
+    logger = EpisodeLogger(run_dir, episodes, done, spec, info["checkpoint_every"], progress, evaluator,
+                           config.env.control_period_s)
     max_steps = config.max_episode_steps
     try:
         model.learn(total_timesteps=(episodes - done + n_envs) * max_steps, callback=logger,

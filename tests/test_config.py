@@ -76,3 +76,13 @@ def test_angle_mix_gives_each_pile_variant_one_of_the_angles():
     assert angles == {25.0, 40.0}
     with pytest.raises(ConfigError, match=r"pile.angle_mix_deg holds 70.0, out of range; allowed \[15.0, 60.0\]"):
         ScoopConfig().with_overrides({"pile.angle_mix_deg": "[25, 70]"})
+
+
+def test_a_yaml_file_overrides_only_the_keys_it_sets(tmp_path):
+    from autoscoop.config import overrides_from_yaml
+
+    (tmp_path / "c.yaml").write_text("pile:\n  angle_deg: 28\nenv.max_episode_s: 6\n")
+    assert overrides_from_yaml(tmp_path / "c.yaml") == {"pile.angle_deg": 28, "env.max_episode_s": 6}
+    (tmp_path / "bad.yaml").write_text("pile: 3\n")
+    with pytest.raises(ConfigError, match="section 'pile' must be a mapping"):
+        overrides_from_yaml(tmp_path / "bad.yaml")

@@ -39,7 +39,11 @@ def test_bad_input_gives_a_clear_error_and_exit_code(capsys):
 
 
 def test_bench_command_reports_the_three_speeds(tmp_path):
+    import os
+
+    cores = os.sched_getaffinity(0)
     out = tmp_path / "bench.json"
     assert main(["bench", "--episodes", "1", "--repeats", "1", "--set", "pile.variants=1", "--json", str(out)]) == 0
     result = json.loads(out.read_text())
     assert result["physics_steps_per_s"] > 0 and result["env_steps_per_s"] > 0 and result["realtime_factor"] > 0
+    assert os.sched_getaffinity(0) == cores  # the pin to one core is undone

@@ -6,7 +6,7 @@ import argparse
 from pathlib import Path
 
 from autoscoop.commands import add_config_args
-from autoscoop.config import load_yaml, parse_set_args
+from autoscoop.config import overrides_from_yaml, parse_set_args
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -37,8 +37,8 @@ def run(args: argparse.Namespace) -> int:
             raise ValueError("--episodes, --n-envs, --checkpoint-every and --eval-episodes must be at least 1")
         if args.eval_every < 0:
             raise ValueError("--eval-every must be 0 (off) or more")
-        overrides = load_yaml(args.config).to_dict() if args.config else {}
-        flat = {f"{section}.{key}": value for section, values in overrides.items() for key, value in values.items()}
+        # only the keys the file sets: its defaults must not undo the algorithm's own (reward.c_w)
+        flat = overrides_from_yaml(args.config) if args.config else {}
         flat.update(parse_set_args(args.overrides))
         run_dir = train(TrainArgs(algo=args.algo, episodes=args.episodes, seed=args.seed, n_envs=args.n_envs,
                                   overrides=flat, out=args.out, checkpoint_every=args.checkpoint_every,
