@@ -105,6 +105,8 @@ BUCKET_INSIDE_POLYGON_M = np.array([
 ])
 """The paper's in-bucket quadrilateral in the bucket frame (x to the cutting edge, z toward the mouth), m:
 tilt joint, 0.124 m at +46 deg, cutting edge, 0.10 m at -41 deg. Clockwise."""
+_EDGES = np.roll(BUCKET_INSIDE_POLYGON_M, -1, axis=0) - BUCKET_INSIDE_POLYGON_M
+_EDGE_OFFSETS = BUCKET_INSIDE_POLYGON_M[:, 1] * _EDGES[:, 0] - BUCKET_INSIDE_POLYGON_M[:, 0] * _EDGES[:, 1]
 BUCKET_INNER_HALF_WIDTH_M = 0.23
 """Half the bucket's inner width across (y), m; chosen so the bucket holds about 23 particles."""
 
@@ -120,10 +122,8 @@ def inside_bucket(points_in_bucket_frame: np.ndarray) -> np.ndarray:
         (n,) boolean mask: inside the quadrilateral in x-z and within the inner width in y.
     """
     p = np.asarray(points_in_bucket_frame, dtype=float)
-    poly = BUCKET_INSIDE_POLYGON_M
-    edges = np.roll(poly, -1, axis=0) - poly
-    rel_x = p[:, None, 0] - poly[None, :, 0]
-    rel_z = p[:, None, 2] - poly[None, :, 1]
-    cross = edges[None, :, 0] * rel_z - edges[None, :, 1] * rel_x
-    return np.all(cross <= 0.0, axis=1) & (np.abs(p[:, 1]) <= BUCKET_INNER_HALF_WIDTH_M)
+    # a point is inside the clockwise polygon when it lies right of (or on) every edge:
+    # edge x (p - vertex) <= 0, i.e. p_z * e_x - p_x * e_z <= v_z * e_x - v_x * e_z for every edge
+    cross = np.outer(p[:, 2], _EDGES[:, 0]) - np.outer(p[:, 0], _EDGES[:, 1])
+    return (cross <= _EDGE_OFFSETS).all(axis=1) & (np.abs(p[:, 1]) <= BUCKET_INNER_HALF_WIDTH_M)
 

@@ -37,6 +37,7 @@ sensitive to torque noise, because that lever arm is short.
 
 from __future__ import annotations
 
+import math
 from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 from typing import Any
@@ -72,6 +73,19 @@ def up_in_chassis(chassis_pitch_rad: float | np.ndarray = 0.0) -> np.ndarray:
     """
     phi = np.asarray(chassis_pitch_rad, dtype=float)
     return np.stack([-np.sin(phi), np.cos(phi)], axis=-1)
+
+
+def pitch_from_quaternion(w: float, x: float, y: float, z: float) -> float:
+    """Chassis pitch (rad, positive nose down, about +y) from an orientation quaternion; 0 if it is not a rotation.
+
+    Wheel odometry often leaves the orientation at zero (not a rotation) or at a pure yaw: both give 0.
+    """
+    norm = math.sqrt(w * w + x * x + y * y + z * z)
+    if not math.isfinite(norm) or norm < 0.5:
+        return 0.0
+    w, x, y, z = w / norm, x / norm, y / norm, z / norm
+    # world up in the chassis frame is the rotation matrix's last row: (2(xz - wy), 2(yz + wx), 1 - 2(x^2 + y^2))
+    return math.atan2(-2.0 * (x * z - w * y), 1.0 - 2.0 * (x * x + y * y))
 
 
 def horizontal(point_xz: np.ndarray, up: np.ndarray) -> np.ndarray:

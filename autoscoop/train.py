@@ -9,6 +9,7 @@ A run directory holds everything needed to repeat and to use the run:
 | episodes.csv | one row per training episode: reward, fill factor, cycle time, success, steps |
 | tb/ | TensorBoard logs |
 | checkpoint/ | model and replay buffer every ``checkpoint_every`` episodes (for ``--resume``) |
+| evaluated/ | the actor (safetensors) at each periodic evaluation: ``episode_NNNNN.safetensors`` |
 | policy.zip | the best SB3 model by periodic evaluation (pickle inside: load only what you trust) |
 | policy.safetensors, policy.json | that policy's actor in the safe format, with its hash |
 | last.safetensors, last.json | the actor at the end of training |
@@ -74,6 +75,12 @@ class TrainArgs:
     """episodes per evaluation (fixed seeds, the training config)."""
     progress: bool = True
     """show a progress bar."""
+    init_from: Path | None = None
+    """fine-tune: start from the policy of this finished run directory (same algorithm) instead of random weights."""
+    trust: bool = False
+    """allow ``init_from`` to name a run whose ``run.json`` does not vouch for its ``policy.zip`` (pickle)."""
+    hyper: dict[str, str] = field(default_factory=dict)
+    """overrides of the algorithm's YAML, ``{"noise.sigma_start": "0.05"}`` (see :func:`with_hyper_overrides`)."""
 
 
 def load_hyperparams(algo: str) -> dict[str, Any]:
@@ -82,6 +89,32 @@ def load_hyperparams(algo: str) -> dict[str, Any]:
         raise ValueError(f"--algo {algo!r} is not offered; choose one of {sorted(ALGORITHMS)}")
     text = (resources.files("autoscoop") / "hyperparams" / f"{algo}.yaml").read_text()
     return yaml.safe_load(text)
+
+
+def with_hyper_overrides(spec: dict[str, Any], overrides: dict[str, str]) -> dict[str, Any]:
+    """The algorithm's settings with ``section.key=value`` overrides (``hyperparams.learning_rate=3e-4``,
+    ``noise.sigma_start=0.05``); only keys the YAML already has, values parsed as YAML scalars of the same type.
+
+    Raises:
+        ValueError: an unknown key, or a value of another type than the YAML's.
+    """
+    out = {name: dict(section) if isinstance(section, dict) else section for name, section in spec.items()}
+    for dotted, text in overrides.items():
+        section, _, key = dotted.partition(".")
+        if not isinstance(out.get(section), dict) or key not in out[section]:
+            known = sorted(f"{name}.{k}" for name, sec in out.items() if isinstance(sec, dict) for k in sec)
+            raise ValueError(f"--hyper {dotted}: not a setting of this algorithm; known: {', '.join(known)}")
+        old = out[section][key]
+        value = yaml.safe_load(text)
+        if isinstance(old, float) and not isinstance(value, bool):
+            try:  # YAML reads 3e-4 as a string
+                value = float(text)
+            except ValueError:
+                pass
+        if type(value) is not type(old):
+            raise ValueError(f"--hyper {dotted}={text}: expected a {type(old).__name__} like {old!r}")
+        out[section][key] = value
+    return out
 
 
 def _make_policy(algo: str, spec: dict[str, Any]) -> tuple[Any, dict[str, Any]]:
@@ -136,8 +169,10 @@ class EpisodeLogger(BaseCallback):
     """
 
     def __init__(self, run_dir: Path, episodes: int, done: int, spec: dict[str, Any], checkpoint_every: int,
-                 progress: bool, evaluator: "PolicyEvaluator | None" = None, control_period_s: float = 0.25) -> None:
+                 progress: bool, evaluator: "PolicyEvaluator | None" = None, control_period_s: float = 0.25,
+                 evaluate_at_start: bool = False) -> None:
         super().__init__()
+        self.evaluate_at_start = evaluate_at_start
         self.control_period_s = control_period_s
         self.run_dir, self.episodes, self.done = run_dir, episodes, done
         self.evaluator = evaluator
@@ -154,6 +189,8 @@ class EpisodeLogger(BaseCallback):
 
     def _on_training_start(self) -> None:
         self._update_noise()
+        if self.evaluate_at_start and self.evaluator is not None:  # fine-tuning: the starting policy is the bar
+            self.evaluator.evaluate(self.model, 0, self.logger)
 
     def _update_noise(self) -> None:
         noise_spec = self.spec.get("noise")
@@ -246,6 +283,10 @@ class PolicyEvaluator:
         self.csv_file.flush()
         logger.record("eval/delivered_fill", score)
         logger.record("eval/success", row["success"])
+        # every evaluated actor stays (80 kB each): a policy judged on more episodes later can be picked
+        save_actor(actor_from_sb3(model), self.run_dir / "evaluated" / f"episode_{episode:05d}.safetensors",
+                   {**_actor_meta(self.info, self.run_dir), "selected_at_episode": episode,
+                    "evaluation_delivered_fill": score})
         if score > self.best:
             self.best = score
             model.save(self.run_dir / "policy.zip")
@@ -293,14 +334,37 @@ def _truncate_csv(path: Path, episodes: int) -> None:
     path.write_text("".join(lines[:1 + episodes]))
 
 
+def init_model_zip(run_dir: Path, algo: str, trust: bool) -> Path:
+    """The SB3 zip of a finished run to fine-tune from, after checking that it may be loaded.
+
+    Raises:
+        ValueError: not a run directory, another algorithm, or a zip the run does not vouch for
+            (its ``run.json`` records the SHA-256) and ``trust`` is false.
+    """
+    from autoscoop.agents.loading import zip_is_vouched_for  # noqa: PLC0415
+
+    run_dir = Path(run_dir)
+    zip_path = run_dir / "policy.zip"
+    if not (run_dir / "run.json").is_file() or not zip_path.is_file():
+        raise ValueError(f"--init {run_dir}: not a training run directory (needs run.json and policy.zip)")
+    source_algo = json.loads((run_dir / "run.json").read_text()).get("algo")
+    if source_algo != algo:
+        raise ValueError(f"--init {run_dir}: that run trained {source_algo!r}, this one trains {algo!r}")
+    if not trust and not zip_is_vouched_for(zip_path):
+        raise ValueError(f"--init {run_dir}: its run.json does not vouch for policy.zip (SHA-256), and loading "
+                         "a zip runs pickle; pass --trust if you trust where it came from")
+    return zip_path
+
+
 def _default_run_dir(args: TrainArgs) -> Path:
     return Path("runs") / f"{args.algo}-s{args.seed}-{time.strftime('%Y%m%d-%H%M%S')}"
 
 
 def train(args: TrainArgs) -> Path:
     """Train from scratch into a new run directory; return it."""
-    spec = load_hyperparams(args.algo)
+    spec = with_hyper_overrides(load_hyperparams(args.algo), args.hyper)
     config = ScoopConfig().with_overrides({**(spec.get("env") or {}), **args.overrides})
+    init_zip = init_model_zip(args.init_from, args.algo, args.trust) if args.init_from else None
     run_dir = Path(args.out) if args.out else _default_run_dir(args)
     if (run_dir / "run.json").exists():
         raise ValueError(f"{run_dir} already holds a run; use --resume {run_dir} to continue it, or another --out")
@@ -311,6 +375,8 @@ def train(args: TrainArgs) -> Path:
             "autoscoop_version": __version__, "command": " ".join(sys.argv), "torch": torch.__version__,
             "checkpoint_every": args.checkpoint_every, "eval_every": args.eval_every,
             "eval_episodes": args.eval_episodes, "status": "running", "wall_s": 0.0}
+    if init_zip is not None:
+        info.update(init_from=str(init_zip.resolve()), init_sha256=sha256_of(init_zip))
     _write_run_json(run_dir, info)
     return _run(run_dir, config, spec, info, done=0, model=None, progress=args.progress)
 
@@ -345,6 +411,14 @@ def resume(run_dir: Path, progress: bool = True) -> Path:
     return _run(run_dir, config, spec, info, done=state["episodes_done"], model=model, progress=progress)
 
 
+def _load_init_weights(model: Any, zip_path: Path, sha256: str) -> None:
+    """Copy the networks (actor, critic and their targets) of a vetted SB3 zip into ``model``."""
+    if sha256_of(zip_path) != sha256:
+        raise ValueError(f"{zip_path} changed since this run started from it (SHA-256); refusing to load it")
+    source = type(model).load(zip_path, device="cpu")
+    model.policy.load_state_dict(source.policy.state_dict())
+
+
 def _write_run_json(run_dir: Path, info: dict[str, Any]) -> None:
     tmp = run_dir / "run.json.tmp"
     tmp.write_text(json.dumps(info, indent=2) + "\n")
@@ -364,13 +438,15 @@ def _run(run_dir: Path, config: ScoopConfig, spec: dict[str, Any], info: dict[st
             kwargs["action_noise"] = _make_noise(spec, n_envs)
         model = algo_cls(policy, env, seed=seed, device="cpu", tensorboard_log=str(run_dir / "tb"),
                          policy_kwargs=policy_kwargs or None, verbose=0, **kwargs)
+        if info.get("init_from"):
+            _load_init_weights(model, Path(info["init_from"]), info["init_sha256"])
     else:
         model.tensorboard_log = str(run_dir / "tb")
     started = time.time()
     evaluator = PolicyEvaluator(run_dir, config, info.get("eval_every", 50), info.get("eval_episodes", 10), info) \
         if info.get("eval_every", 50) > 0 else None
     logger = EpisodeLogger(run_dir, episodes, done, spec, info["checkpoint_every"], progress, evaluator,
-                           config.env.control_period_s)
+                           config.env.control_period_s, evaluate_at_start=bool(info.get("init_from")) and done == 0)
     max_steps = config.max_episode_steps
     try:
         model.learn(total_timesteps=(episodes - done + n_envs) * max_steps, callback=logger,

@@ -1,7 +1,8 @@
 """Ship a trained policy as the package's ``default``, with its metrics beside it.
 
 ``.venv/bin/python benchmarks/ship_policy.py RUN_DIR`` copies ``RUN_DIR/policy.safetensors`` and its
-``.json`` to ``autoscoop/policies/default.*``, evaluates it on the three public piles (25, 32, 40
+``.json`` (or, with ``--file``, a snapshot such as ``RUN_DIR/evaluated/episode_00700.safetensors``, picked by
+``benchmarks/select_policy.py``) to ``autoscoop/policies/default.*``, evaluates it on the three public piles (25, 32, 40
 degrees; 100 episodes each, seeds 0-99) and writes ``autoscoop/policies/default.metrics.json``.
 """
 
@@ -22,14 +23,16 @@ KEYS = ("fill_factor_mean", "fill_factor_std", "mass_kg_mean", "mass_kg_std", "c
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("run_dir", type=Path)
+    parser.add_argument("--file", type=Path, help="a snapshot of the run to ship instead of RUN_DIR/policy.safetensors")
     parser.add_argument("--episodes", type=int, default=100)
     parser.add_argument("--angles", type=float, nargs="+", default=[25.0, 32.0, 40.0])
     args = parser.parse_args()
     POLICIES.mkdir(exist_ok=True)
+    source = args.file or args.run_dir / "policy.safetensors"
     for suffix in (".safetensors", ".json"):
-        shutil.copy(args.run_dir / f"policy{suffix}", POLICIES / f"default{suffix}")
+        shutil.copy(source.with_suffix(suffix), POLICIES / f"default{suffix}")
     run = json.loads((args.run_dir / "run.json").read_text())
-    metrics = {"source_run": args.run_dir.name, "algo": run["algo"], "seed": run["seed"],
+    metrics = {"source_run": args.run_dir.name, "source_file": str(source.relative_to(args.run_dir)), "algo": run["algo"], "seed": run["seed"],
                "training_episodes": run["episodes"], "training_wall_s": run.get("wall_s"),
                "training_config": (args.run_dir / "config.yaml").read_text(), "piles": {}}
     for angle in args.angles:

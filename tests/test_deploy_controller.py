@@ -27,6 +27,7 @@ def feed_all(core, t, lift=0.23, tilt=0.0, joints=True):
     core.odometry(0.05, t)
     core.pile_range(0.3, t, 0.0, 4.0)
     core.bucket_torque(-1.0, t)
+    core.lift_torque(-20.0, t)
 
 
 def run(core, t, until, feed=feed_all, sensor_period=0.02, log=None):
@@ -109,6 +110,7 @@ def test_estop_stops_at_once_and_holds_until_cleared():
     lambda c, t: c.pile_range(-0.5, t, 0.0, 4.0),
     lambda c, t: c.pile_range(5.0, t, 0.0, 4.0),
     lambda c, t: c.bucket_torque(1e9, t),
+    lambda c, t: c.lift_torque(float("nan"), t),
 ])
 def test_an_invalid_reading_stops_the_robot_at_once(bad):
     core = make_core()
@@ -172,6 +174,7 @@ def test_fuzzed_readings_never_yield_a_bad_command(seed):
             core.pile_range(number(rng.uniform(0, 1)), t, number(0.0), number(4.0))
         elif kind == 3:
             core.bucket_torque(number(rng.uniform(-10, 10)), t)
+            core.lift_torque(number(rng.uniform(-60, 0)), t)
         elif kind == 4 and rng.random() < 0.05:
             core.estop(bool(rng.random() < 0.5), t)
         elif kind == 5 and rng.random() < 0.05:
@@ -251,3 +254,59 @@ def test_payload_from_a_topic_replaces_the_torque_estimate():
     assert core._measurements().mass_kg == 3.5
     assert not core.payload_mass(float("nan"), 0.1)
     assert core.update(0.1).mode == "fault"
+
+
+def _held_payload_torques(lift, tilt, mass_kg, pitch=0.0):
+    """Joint torques (lift, tilt) that hold the arm, the bucket and ``mass_kg`` at an off-centre point."""
+    from autoscoop import payload as P
+
+    jac = P.bucket_point_jacobian(lift, tilt, np.array([0.13, 0.02]))  # not the calibration's point: eq. 8 needs none
+    return P.gravity_torques(lift, tilt, pitch) + jac.T @ (mass_kg * P.GRAVITY_MPS2 * P.up_in_chassis(pitch))
+
+
+def test_the_node_weighs_the_payload_with_eq8_averaged_over_the_period_like_the_environment():
+    lift, tilt, pitch, mass = 0.0, -0.45, 0.05, 4.2
+    tau = _held_payload_torques(lift, tilt, mass, pitch)
+    quat = (math.cos(pitch / 2), 0.0, math.sin(pitch / 2), 0.0)  # nose down about +y
+    from autoscoop.payload import pitch_from_quaternion
+
+    assert pitch_from_quaternion(*quat) == pytest.approx(pitch)
+    core = make_core()
+    swing = 6.0  # N*m on the bucket torque, alternating: rattling particles; the mean is right
+
+    def feed(c, t):
+        k = int(round(t / 0.02))
+        c.joint_states(["lift", "tilt"], [lift, tilt], t)
+        c.odometry(0.0, t, pitch_from_quaternion(*quat))
+        c.pile_range(0.3, t, 0.0, 4.0)
+        c.bucket_torque(tau[1] + (swing if k % 2 else -swing), t)
+        c.lift_torque(tau[0], t)
+
+    feed(core, 0.0)
+    feed(core, 0.02)
+    core.scoop(True, 0.02)
+    run(core, 0.02, 1.0, feed=feed, sensor_period=0.02)
+    w = core.episode.previous.mass_kg
+    assert w == pytest.approx(mass, abs=0.35)  # a whole number of swings (+-6 N*m is +-4 kg) averaged per period
+    assert core.mass_from_torque.estimator.method == "eq8"
+
+
+def test_eq8_needs_the_lift_torque_and_eq4_does_not():
+    core = make_core()
+    t = 0.0
+    core.joint_states(["lift", "tilt"], [0.23, 0.0], t)
+    core.odometry(0.0, t)
+    core.pile_range(0.3, t, 0.0, 4.0)
+    core.bucket_torque(-1.0, t)
+    core.scoop(True, t)
+    command = core.update(t)
+    assert command.mode == "fault" and "lift_torque" in command.reason
+    eq4 = make_core(robot_config_from_dict({"payload": {"method": "eq4"}}))
+    eq4.joint_states(["lift", "tilt"], [0.23, 0.0], t)
+    eq4.odometry(0.0, t)
+    eq4.pile_range(0.3, t, 0.0, 4.0)
+    eq4.bucket_torque(-1.0, t)
+    eq4.scoop(True, t)
+    assert eq4.update(t).mode == "running"
+    with pytest.raises(Exception, match="payload.method"):
+        robot_config_from_dict({"payload": {"method": "eq5"}})

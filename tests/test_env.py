@@ -82,3 +82,19 @@ def test_success_pays_the_mass_bonus_and_reports_cycle_time():
     _, reward, terminated, _, info = env.step(np.zeros(3))
     assert terminated and info["success"] and info["cycle_time_s"] == pytest.approx(0.25)
     assert info["reward_mass"] == pytest.approx(env.config.reward.c_w * info["fill_factor"])
+
+
+def test_terminal_distance_is_measured_in_the_arms_plane():
+    """A loader that drifted sideways (unobservable in the state) is as far from the terminal point."""
+    env = ScoopEnv(**SMALL)
+    env.reset(seed=0)
+    _, _, _, _, straight = env.step(np.zeros(3))
+    env.reset(seed=0)
+    root = env.sim.model.joint("root").qposadr[0]
+    env.sim.data.qpos[root + 1] += 0.08  # 8 cm to the side
+    _, _, _, _, drifted = env.step(np.zeros(3))
+    tip = env.sim.tip_world
+    assert abs(tip[1]) > 0.07
+    expected = np.hypot(tip[0] - env.config.reward.terminal_dx_m, tip[2] - env.config.reward.terminal_z_m)
+    assert drifted["tip_to_terminal_m"] == pytest.approx(expected)
+    assert drifted["tip_to_terminal_m"] == pytest.approx(straight["tip_to_terminal_m"], abs=2e-3)

@@ -108,6 +108,7 @@ def test_the_controller_runs_an_onnx_policy_without_torch(exported):
             core.odometry(0.0, t)
             core.pile_range(0.3, t, 0.0, 4.0)
             core.bucket_torque(-1.0, t)
+            core.lift_torque(-20.0, t)
         core.scoop(True, 0.1)
         command = core.update(0.1)
         assert command.mode == "running", command

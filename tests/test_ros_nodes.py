@@ -108,7 +108,7 @@ def _fuzzed(probe, rng):
         return Range(min_range=maybe(0.0), max_range=maybe(4.0), range=maybe(0.3))
 
     return {"joint_states": joints, "odom": odom, "pile_range": distance,
-            "bucket_torque": lambda: Float64(maybe(-1.0))}
+            "bucket_torque": lambda: Float64(maybe(-1.0)), "lift_torque": lambda: Float64(maybe(-20.0))}
 
 
 def test_fuzzed_sensor_messages_never_yield_a_bad_command(probe):

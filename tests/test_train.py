@@ -172,3 +172,30 @@ def test_a_zip_with_a_pickle_payload_is_refused_without_trust(tmp_path):
     assert not marker.exists()
     assert main(["eval", "--policy", str(archive), "--episodes", "1"]) == 2
     assert not marker.exists()
+
+
+def test_init_fine_tunes_from_a_finished_run_and_checks_what_it_loads(tmp_path):
+    source, tuned = tmp_path / "source", tmp_path / "tuned"
+    assert main(["train", "--episodes", "3", "--eval-every", "3", "--eval-episodes", "1", "--out", str(source),
+                 *FAST]) == 0
+    assert main(["train", "--init", str(source), "--episodes", "2", "--eval-every", "2", "--eval-episodes", "1",
+                 "--hyper", "noise.sigma_start=0.05", "--hyper", "hyperparams.learning_rate=3e-4",
+                 "--out", str(tuned), *FAST]) == 0
+    info = json.loads((tuned / "run.json").read_text())
+    assert Path(info["init_from"]) == (source / "policy.zip").resolve()
+    evaluations = [int(r["episode"]) for r in csv.DictReader(open(tuned / "evaluations.csv"))]
+    assert evaluations == [0, 2]  # the starting policy is evaluated first
+    start = load_policy(str(tuned / "evaluated" / "episode_00000.safetensors"), ScoopConfig())
+    original = load_policy(str(source / "policy.safetensors"), ScoopConfig())
+    states = np.random.default_rng(0).normal(size=(16, 12)).astype(np.float32)
+    np.testing.assert_allclose([start.act(s) for s in states], [original.act(s) for s in states], atol=1e-6)
+    hyper = __import__("yaml").safe_load((tuned / "hyperparams.yaml").read_text())
+    assert hyper["noise"]["sigma_start"] == 0.05 and hyper["hyperparams"]["learning_rate"] == 3e-4
+    # a zip its run no longer vouches for, another algorithm, an unknown setting: refused before training
+    with open(source / "policy.zip", "ab") as f:
+        f.write(b"tampered")
+    assert main(["train", "--init", str(source), "--episodes", "1", "--out", str(tmp_path / "a"), *FAST]) == 2
+    assert main(["train", "--init", str(tuned), "--algo", "td3", "--episodes", "1", "--out", str(tmp_path / "b"),
+                 *FAST]) == 2
+    assert main(["train", "--hyper", "hyperparams.lr=1", "--episodes", "1", "--out", str(tmp_path / "c"), *FAST]) == 2
+    assert not any((tmp_path / name / "run.json").exists() for name in "abc")

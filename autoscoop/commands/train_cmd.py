@@ -22,6 +22,13 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument("--eval-episodes", type=int, default=10, help="episodes per evaluation (default 10)")
     parser.add_argument("--out", type=Path, help="run directory (default runs/ALGO-sSEED-TIME)")
     parser.add_argument("--resume", type=Path, metavar="RUN_DIR", help="continue an interrupted run")
+    parser.add_argument("--init", type=Path, metavar="RUN_DIR",
+                        help="fine-tune: start from the policy of this finished run (same --algo)")
+    parser.add_argument("--trust", action="store_true",
+                        help="let --init load a policy.zip its run.json does not vouch for (zips run pickle)")
+    parser.add_argument("--hyper", action="append", default=[], metavar="SECTION.KEY=VALUE",
+                        help="override a setting of the algorithm's YAML, e.g. hyperparams.learning_rate=3e-4 "
+                             "or noise.sigma_start=0.05 (repeatable)")
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
     add_config_args(parser)
     parser.set_defaults(func=run)
@@ -43,6 +50,7 @@ def run(args: argparse.Namespace) -> int:
         run_dir = train(TrainArgs(algo=args.algo, episodes=args.episodes, seed=args.seed, n_envs=args.n_envs,
                                   overrides=flat, out=args.out, checkpoint_every=args.checkpoint_every,
                                   eval_every=args.eval_every, eval_episodes=args.eval_episodes,
-                                  progress=not args.no_progress))
+                                  progress=not args.no_progress, init_from=args.init, trust=args.trust,
+                                  hyper=parse_set_args(args.hyper)))
     print(f"run directory: {run_dir}")
     return 0

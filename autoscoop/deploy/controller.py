@@ -6,8 +6,8 @@ numbers with the time it arrived, and calls :meth:`ControllerCore.update` whenev
 :class:`~autoscoop.deploy.safety.Command` it returns is to be published at once.
 
 Per control period (``control.control_period_s``, 0.25 s) while a scoop runs and every input is
-healthy, it builds the 12-number state with :func:`autoscoop.state.build_state` (mass from the bucket
-torque through the payload estimator), asks the policy for an action, moves the targets with
+healthy, it builds the 12-number state with :func:`autoscoop.state.build_state` (mass from the joint
+torques, averaged over the period, through the payload estimator), asks the policy for an action, moves the targets with
 :func:`autoscoop.state.advance_targets` (the environment's scaling) and clamps the command to the
 robot's limits. Otherwise:
 
@@ -42,40 +42,82 @@ from autoscoop.reward import is_penetrating
 from autoscoop.state import CommandLimits, Measurements, advance_targets, build_state, validate_action
 
 SENSOR_INPUTS = ("joint_states", "odom", "pile_range")
-"""Inputs the watchdog always requires fresh; also ``bucket_torque`` or ``payload_mass`` (per
-``payload.source``), and ``estop`` when ``estop.required``."""
+"""Inputs the watchdog always requires fresh; also the payload's (per ``payload.source`` and
+``payload.method``: ``bucket_torque`` and ``lift_torque``, ``bucket_torque``, or ``payload_mass``), and
+``estop`` when ``estop.required``."""
 WAKE_SLACK_S = 1e-4
 """A wake-up this close before a deadline counts as on time (timers fire a little early or late)."""
 
 
-class MassFromTorque(Protocol):
-    """Payload mass (kg) from the bucket joint's torque (N*m) at the measured joint angles (rad)."""
+def payload_inputs(payload: Any) -> tuple[str, ...]:
+    """The inputs the payload mass needs, for a ``payload`` section of the robot config."""
+    if payload.source == "topic":
+        return ("payload_mass",)
+    return ("bucket_torque", "lift_torque") if payload.method == "eq8" else ("bucket_torque",)
 
-    def __call__(self, tilt_torque_nm: float, lift_rad: float, tilt_rad: float) -> float: ...
+
+class ChannelMeans:
+    """Means of each reading since they were last taken: the payload's load-cell averaging.
+
+    The environment's torque sensor (:class:`autoscoop.sim.load_cell.TorqueMassSensor`) averages its
+    readings over each control period, because particles rattling in the servo-held bucket swing a
+    single reading by a kilogram or more; the node averages the messages of each channel the same way.
+    """
+
+    def __init__(self) -> None:
+        self._sum: dict[str, float] = {}
+        self._count: dict[str, int] = {}
+        self._last: dict[str, float] = {}
+
+    def add(self, channel: str, value: float) -> None:
+        """One (finite) reading of ``channel``."""
+        self._sum[channel] = self._sum.get(channel, 0.0) + value
+        self._count[channel] = self._count.get(channel, 0) + 1
+        self._last[channel] = value
+
+    def take(self, channel: str) -> float:
+        """The mean since the last take (the last reading when none came since; NaN when none ever), then start over."""
+        count = self._count.pop(channel, 0)
+        total = self._sum.pop(channel, 0.0)
+        return total / count if count else self._last.get(channel, math.nan)
+
+    def restart(self) -> None:
+        """Start every average over (a scoop starts); the last readings stay."""
+        self._sum.clear()
+        self._count.clear()
+
+
+class MassFromTorque(Protocol):
+    """Payload mass (kg) from the joint torques (N*m) at the measured joint angles and chassis pitch (rad)."""
+
+    def __call__(self, lift_torque_nm: float, tilt_torque_nm: float, lift_rad: float, tilt_rad: float,
+                 chassis_pitch_rad: float = 0.0) -> float: ...
 
 
 class PayloadMass:
-    """The node's mass input: :class:`autoscoop.payload.PayloadEstimator` with eq. 4 (bucket torque alone).
+    """The node's mass input: :class:`autoscoop.payload.PayloadEstimator`, eq. 8 (both joints) or eq. 4 (bucket).
 
-    An estimate below ``empty_below_kg`` reads 0: with an empty bucket the torque still swings while
-    the robot accelerates, and a controller must not take that for a first particle. Where eq. 4 is
-    undefined (the payload's centre right above the joint) the last estimate is kept.
+    Eq. 8 is what the environment's torque sensor uses (``env.mass_source = torque``). Negative
+    estimates read 0, as the environment's do; an estimate below ``empty_below_kg`` reads 0 too. Where
+    the estimate is undefined (eq. 4 with the payload's centre right above the joint) the last one is kept.
 
     Args:
         calibration: payload calibration YAML (``autoscoop payload calibrate``); empty: the nominal one.
         empty_below_kg: the estimator's noise floor, kg.
+        method: ``eq8`` or ``eq4``.
     """
 
-    def __init__(self, calibration: str | Path = "", empty_below_kg: float = 0.0) -> None:
+    def __init__(self, calibration: str | Path = "", empty_below_kg: float = 0.0, method: str = "eq8") -> None:
         from autoscoop.payload import PayloadCalibration, PayloadEstimator  # noqa: PLC0415 - numpy only
 
         cal = PayloadCalibration.load(calibration) if calibration else PayloadCalibration()
-        self.estimator = PayloadEstimator(cal, method="eq4")
+        self.estimator = PayloadEstimator(cal, method=method)
         self.empty_below_kg = empty_below_kg
         self._last = 0.0
 
-    def __call__(self, tilt_torque_nm: float, lift_rad: float, tilt_rad: float) -> float:
-        mass = self.estimator.mass_kg(lift_rad, tilt_rad, math.nan, tilt_torque_nm)
+    def __call__(self, lift_torque_nm: float, tilt_torque_nm: float, lift_rad: float, tilt_rad: float,
+                 chassis_pitch_rad: float = 0.0) -> float:
+        mass = self.estimator.mass_kg(lift_rad, tilt_rad, lift_torque_nm, tilt_torque_nm, chassis_pitch_rad)
         if math.isfinite(mass):
             self._last = mass if mass >= self.empty_below_kg else 0.0
         return self._last
@@ -116,11 +158,11 @@ class ControllerCore:
         self.task_limits = CommandLimits(max_speed_mps=self.task.robot.max_speed_mps)
         self.period_s = config.control.control_period_s
         self.limiter = CommandLimiter(config.limits, self.period_s)
-        mass_input = "payload_mass" if config.payload.source == "topic" else "bucket_torque"
-        inputs = SENSOR_INPUTS + (mass_input,) + (("estop",) if config.estop.required else ())
+        inputs = SENSOR_INPUTS + payload_inputs(config.payload) + (("estop",) if config.estop.required else ())
         self.watchdog = InputWatchdog(inputs, config.control.input_timeout_s)
         self.mass_from_torque = mass_from_torque or PayloadMass(config.payload.calibration,
-                                                                config.payload.empty_below_kg)
+                                                                config.payload.empty_below_kg, config.payload.method)
+        self.means = ChannelMeans()
         self.record_dir = None if record_dir is None else Path(record_dir)
         self.log = log or (lambda level, text: None)
         margin = config.sensors.joint_margin_rad
@@ -131,6 +173,8 @@ class ControllerCore:
         self.speed_mps = math.nan
         self.range_m = math.nan
         self.torque_nm = math.nan
+        self.lift_torque_nm = math.nan
+        self.chassis_pitch_rad = 0.0
         self.reported_mass_kg = math.nan
         self.estop_engaged = False
         self.episode: _Episode | None = None
@@ -169,14 +213,19 @@ class ControllerCore:
                 return False
             values[joint] = angle
         self.lift_rad, self.tilt_rad = values["lift"], values["tilt"]
+        self.means.add("lift_rad", self.lift_rad)
+        self.means.add("tilt_rad", self.tilt_rad)
         self.watchdog.valid("joint_states", now)
         return True
 
-    def odometry(self, speed_mps: float, now: float) -> bool:
-        """``nav_msgs/Odometry``: forward speed, m/s."""
+    def odometry(self, speed_mps: float, now: float, chassis_pitch_rad: float = 0.0) -> bool:
+        """``nav_msgs/Odometry``: forward speed, m/s, and the chassis pitch of its orientation, rad (nose down +)."""
         if not self._within("odom", speed_mps, self.config.sensors.max_speed_reading_mps, "m/s", now):
             return False
         self.speed_mps = float(speed_mps)
+        pitch = float(chassis_pitch_rad)
+        self.chassis_pitch_rad = pitch if math.isfinite(pitch) and abs(pitch) < 0.5 * math.pi else 0.0
+        self.means.add("pitch", self.chassis_pitch_rad)
         return True
 
     def pile_range(self, range_m: float, now: float, min_range_m: float = 0.0, max_range_m: float = math.inf) -> bool:
@@ -197,6 +246,15 @@ class ControllerCore:
         if not self._within("bucket_torque", torque_nm, self.config.sensors.max_torque_nm, "N*m", now):
             return False
         self.torque_nm = float(torque_nm)
+        self.means.add("tilt_torque", self.torque_nm)
+        return True
+
+    def lift_torque(self, torque_nm: float, now: float) -> bool:
+        """``std_msgs/Float64``: torque at the lift joint, N*m (``payload.method: eq8``)."""
+        if not self._within("lift_torque", torque_nm, self.config.sensors.max_torque_nm, "N*m", now):
+            return False
+        self.lift_torque_nm = float(torque_nm)
+        self.means.add("lift_torque", self.lift_torque_nm)
         return True
 
     def payload_mass(self, mass_kg: float, now: float) -> bool:
@@ -282,7 +340,9 @@ class ControllerCore:
         if self.config.payload.source == "topic":
             mass = max(self.reported_mass_kg, 0.0)
         else:
-            mass = float(self.mass_from_torque(self.torque_nm, self.lift_rad, self.tilt_rad))
+            take = self.means.take
+            mass = float(self.mass_from_torque(take("lift_torque"), take("tilt_torque"), take("lift_rad"),
+                                               take("tilt_rad"), take("pitch")))
         return Measurements(mass_kg=mass if math.isfinite(mass) else 0.0, pile_distance_m=self.range_m,
                             speed_mps=self.speed_mps, lift_rad=self.lift_rad, tilt_rad=self.tilt_rad)
 
@@ -335,6 +395,7 @@ class ControllerCore:
     def _start_episode(self, now: float) -> None:
         self._start_requested = False
         self.policy.reset()
+        self.means.restart()
         arm = self._start_arm()
         targets = np.clip([0.0, *arm], self.task_limits.low, self.task_limits.high)
         index = self.episodes_done
@@ -367,7 +428,7 @@ class ControllerCore:
         self.episode.record.append(
             time_s=now - self.episode.start, state=state.astype(float), action=action, reward=nan,
             reward_progress=nan, reward_mass=nan, particles_in_bucket=nan, mass_in_bucket_kg=nan,
-            lift_rad=self.lift_rad, tilt_rad=self.tilt_rad, lift_torque_nm=nan, tilt_torque_nm=self.torque_nm,
+            lift_rad=self.lift_rad, tilt_rad=self.tilt_rad, lift_torque_nm=self.lift_torque_nm, tilt_torque_nm=self.torque_nm,
             tip_world_m=[nan, nan, nan],
             penetrating=is_penetrating(self.range_m + self.task.pile.radius_m, self.task.reward))
 

@@ -82,7 +82,7 @@ class SensorsSection(_Section):
     max_speed_reading_mps: float = _field(1.0, "m/s", "an odometry speed above this is a sensor fault", 0.05, 10.0)
     max_range_m: float = _field(10.0, "m", "a pile_range reading above this (or above the message's max_range) is "
                                           "no reading", 0.1, 100.0)
-    max_torque_nm: float = _field(200.0, "N*m", "a bucket torque reading above this (either sign) is a sensor fault",
+    max_torque_nm: float = _field(200.0, "N*m", "a joint torque reading above this (either sign) is a sensor fault",
                                   1.0, 5000.0)
 
 
@@ -97,12 +97,16 @@ class EstopSection(_Section):
 
 @dataclass(frozen=True)
 class PayloadSection(_Section):
-    """The state's payload mass: from the bucket joint's torque (autoscoop.payload, paper eq. 4), or reported."""
+    """The state's payload mass: from the joint torques (autoscoop.payload, paper eq. 8 or eq. 4), or reported."""
 
     _section = "payload"
-    source: str = _field("torque", "-", "mass from bucket_torque through the estimator (torque), or as reported "
-                                        "on payload_mass by a load cell or the simulator (topic)",
+    source: str = _field("torque", "-", "mass from the joint torques through the estimator (torque), or as "
+                                        "reported on payload_mass by a load cell or the simulator (topic)",
                          choices=("torque", "topic"))
+    method: str = _field("eq8", "-", "torque estimator: eq8 (lift_torque and bucket_torque, the arm's static "
+                                     "equilibrium, as in training) or eq4 (bucket_torque alone, the paper's "
+                                     "lever-arm formula; far more sensitive to the pile's push)",
+                         choices=("eq8", "eq4"))
     calibration: str = _field("", "-", "payload calibration YAML (autoscoop payload calibrate); empty: nominal")
     rated_load_kg: float = _field(7.0, "kg", "rated bucket load: the state's w = mass / rated load", 0.1, 100.0)
     empty_below_kg: float = _field(0.35, "kg", "estimates below this read 0: the estimate's swing with an empty "
@@ -111,7 +115,7 @@ class PayloadSection(_Section):
 
 TOPIC_DEFAULTS = {
     "joint_states": "joint_states", "odom": "odom", "pile_range": "pile_range", "bucket_torque": "bucket_torque",
-    "payload_mass": "payload_mass", "estop": "estop", "scoop": "scoop", "cmd_vel": "cmd_vel",
+    "lift_torque": "lift_torque", "payload_mass": "payload_mass", "estop": "estop", "scoop": "scoop", "cmd_vel": "cmd_vel",
     "lift_command": "lift_controller/command", "tilt_command": "tilt_controller/command",
 }
 _TOPIC_DOCS = {
@@ -119,6 +123,7 @@ _TOPIC_DOCS = {
     "odom": "nav_msgs/Odometry in: twist.twist.linear.x is the forward speed (m/s)",
     "pile_range": "sensor_msgs/Range in: distance from the bucket tip to the pile (m)",
     "bucket_torque": "std_msgs/Float64 in: torque at the tilt joint (N*m)",
+    "lift_torque": "std_msgs/Float64 in: torque at the lift joint (N*m), used by payload.method = eq8",
     "payload_mass": "std_msgs/Float64 in: mass in the bucket (kg), used when payload.source = topic",
     "estop": "std_msgs/Bool in: true stops the robot until false",
     "scoop": "std_msgs/Bool in: true starts a scoop, false ends it",
@@ -137,6 +142,7 @@ class TopicsSection:
     odom: str = TOPIC_DEFAULTS["odom"]
     pile_range: str = TOPIC_DEFAULTS["pile_range"]
     bucket_torque: str = TOPIC_DEFAULTS["bucket_torque"]
+    lift_torque: str = TOPIC_DEFAULTS["lift_torque"]
     payload_mass: str = TOPIC_DEFAULTS["payload_mass"]
     estop: str = TOPIC_DEFAULTS["estop"]
     scoop: str = TOPIC_DEFAULTS["scoop"]

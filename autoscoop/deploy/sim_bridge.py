@@ -7,7 +7,7 @@ setpoint moving toward it as the environment moves it: at ``(command - setpoint)
 bounded by the actuator's speed, until it gets there or the next command arrives. With one command
 per control period this is exactly the environment's servo, so only the topics' timing differs.
 Each step yields the readings the robot's sensors give (joint positions, wheel-odometry speed, range
-from the tip to the pile, bucket torque), with Gaussian noise, and the episode ends as in evaluation
+from the tip to the pile, joint torques), with Gaussian noise, and the episode ends as in evaluation
 (success or the time limit), with the same metrics.
 """
 
@@ -25,6 +25,7 @@ from autoscoop.config import ScoopConfig
 from autoscoop.deploy.robot_config import RobotNodeConfig
 from autoscoop.envs.scoop import make_scoop_env
 from autoscoop.evaluate import EpisodeResult
+from autoscoop.payload import pitch_from_quaternion
 from autoscoop.state import CommandLimits, advance_targets, servo_rate
 
 MIN_SENSOR_PERIOD_S = 0.02
@@ -39,7 +40,7 @@ class SensorNoise:
         joint_rad: on each joint angle, rad (before conversion to a raw reading).
         speed_mps: on the odometry speed, m/s.
         range_m: on the range to the pile, m (the result is kept >= 0).
-        torque_nm: on the bucket torque, N*m.
+        torque_nm: on each joint torque (bucket and lift), N*m.
     """
 
     joint_rad: float = 0.0
@@ -65,6 +66,7 @@ class SensorReadings:
         speed_mps: forward speed from wheel odometry, m/s.
         range_m: distance from the bucket tip to the pile, m.
         torque_nm: torque at the tilt (bucket) joint, N*m.
+        lift_torque_nm: torque at the lift joint, N*m.
         payload_kg: mass of the particles inside the bucket, kg (what a perfect load cell would report).
         chassis_xyz_m: chassis centre in the world (pile) frame, m (for the odometry pose).
         chassis_quat_wxyz: chassis orientation, unit quaternion (w, x, y, z).
@@ -76,6 +78,7 @@ class SensorReadings:
     speed_mps: float
     range_m: float
     torque_nm: float
+    lift_torque_nm: float
     payload_kg: float
     chassis_xyz_m: tuple[float, float, float]
     chassis_quat_wxyz: tuple[float, float, float, float]
@@ -187,6 +190,7 @@ class SimBridge:
         if noise.range_m and math.isfinite(distance):
             distance = max(0.0, distance + rng.normal(0.0, noise.range_m))
         torque = sim.tilt_torque_nm + (rng.normal(0.0, noise.torque_nm) if noise.torque_nm else 0.0)
+        lift_torque = sim.lift_torque_nm + (rng.normal(0.0, noise.torque_nm) if noise.torque_nm else 0.0)
         position, rotation = sim.chassis_pose
         quat = np.empty(4)
         import mujoco  # noqa: PLC0415 - already loaded by the simulator
@@ -195,7 +199,7 @@ class SimBridge:
         return SensorReadings(
             time_s=sim.elapsed_s, joint_names=(self.robot.sensors.lift_joint, self.robot.sensors.tilt_joint),
             joint_positions=(float(positions[0]), float(positions[1])), speed_mps=float(speed), range_m=distance,
-            torque_nm=float(torque), payload_kg=float(info.get("mass_in_bucket_kg", 0.0)),
+            torque_nm=float(torque), lift_torque_nm=float(lift_torque), payload_kg=float(info.get("mass_in_bucket_kg", 0.0)),
             chassis_xyz_m=tuple(float(v) for v in position),
             chassis_quat_wxyz=tuple(float(v) for v in quat))
 
@@ -266,9 +270,10 @@ def run_without_ros(bridge: SimBridge, core: Any, seed: int, start_s: float = 0.
     def feed(r: SensorReadings) -> float:
         now = start_s + r.time_s
         core.joint_states(r.joint_names, r.joint_positions, now)
-        core.odometry(r.speed_mps, now)
+        core.odometry(r.speed_mps, now, pitch_from_quaternion(*r.chassis_quat_wxyz))
         core.pile_range(r.range_m, now, 0.0, 4.0)
         core.bucket_torque(r.torque_nm, now)
+        core.lift_torque(r.lift_torque_nm, now)
         core.payload_mass(r.payload_kg, now)
         return now
 

@@ -60,6 +60,10 @@ class ScoopEnv(gym.Env):
     else ``1 - tanh^2(d_t)``; plus ``reward.c_w * w_t`` on the step the tip comes within
     ``reward.epsilon_m`` of the terminal point (``reward.terminal_dx_m`` from the toe,
     ``reward.terminal_z_m`` high). ``info["reward_progress"] + info["reward_mass"] == reward``.
+    ``d_end`` is measured in the arm's plane (world x and z): the terminal point marks a reach and a
+    height over the pile across the bucket's width, as in the paper's planar problem. The state
+    carries no lateral position, and a skid-steer pushed into a jittered pile yaws a few centimetres
+    sideways, which the policy can neither see nor undo.
 
     ## Episode end
     Terminated on success or on a physics error (NaN state or a MuJoCo instability warning:
@@ -93,7 +97,7 @@ class ScoopEnv(gym.Env):
         self.limits = CommandLimits(max_speed_mps=config.robot.max_speed_mps)
         self.action_space = gym.spaces.Box(-1.0, 1.0, shape=(state_mod.ACTION_SIZE,), dtype=np.float32)
         self.observation_space = gym.spaces.Box(-np.inf, np.inf, shape=(state_mod.STATE_SIZE,), dtype=np.float32)
-        self._terminal = np.array([config.reward.terminal_dx_m, 0.0, config.reward.terminal_z_m])
+        self._terminal_xz = np.array([config.reward.terminal_dx_m, config.reward.terminal_z_m])
         self._mass_estimator = None
         self._renderer = None
         self._targets = np.zeros(3)
@@ -166,7 +170,7 @@ class ScoopEnv(gym.Env):
         outside = ~inside
         tip_to_pile = float(max(distances[outside].min() - cfg.pile.radius_m, 0.0)) if outside.any() else 0.0
         nearest = float(distances.min()) if len(distances) else np.inf
-        tip_to_terminal = float(np.linalg.norm(tip - self._terminal))
+        tip_to_terminal = float(np.linalg.norm(tip[[0, 2]] - self._terminal_xz))  # in the arm's plane: see docstring
         mass = true_mass if self._mass_estimator is None else self._mass_estimator.estimate(sim)
         now = Measurements(mass_kg=mass, pile_distance_m=tip_to_pile, speed_mps=sim.odometry_speed_mps,
                            lift_rad=sim.lift_rad, tilt_rad=sim.tilt_rad)

@@ -14,7 +14,8 @@ import threading
 import time
 from typing import Callable
 
-from autoscoop.deploy.controller import ControllerCore
+from autoscoop.deploy.controller import ControllerCore, payload_inputs
+from autoscoop.payload import pitch_from_quaternion
 from autoscoop.deploy.ros1 import import_rospy
 from autoscoop.deploy.safety import Command
 
@@ -64,7 +65,8 @@ def run_controller_node(core: ControllerCore, argv: list[str] | None = None, nod
 
     def on_odom(msg: Odometry) -> None:
         stamped_delay("odom", msg.header)
-        feed(lambda now: core.odometry(msg.twist.twist.linear.x, now))
+        q = msg.pose.pose.orientation
+        feed(lambda now: core.odometry(msg.twist.twist.linear.x, now, pitch_from_quaternion(q.w, q.x, q.y, q.z)))
 
     def on_range(msg: Range) -> None:
         stamped_delay("pile_range", msg.header)
@@ -72,6 +74,9 @@ def run_controller_node(core: ControllerCore, argv: list[str] | None = None, nod
 
     def on_torque(msg: Float64) -> None:
         feed(lambda now: core.bucket_torque(msg.data, now))
+
+    def on_lift_torque(msg: Float64) -> None:
+        feed(lambda now: core.lift_torque(msg.data, now))
 
     def on_mass(msg: Float64) -> None:
         feed(lambda now: core.payload_mass(msg.data, now))
@@ -86,13 +91,17 @@ def run_controller_node(core: ControllerCore, argv: list[str] | None = None, nod
     lift_cmd = rospy.Publisher(topics.lift_command, Float64, queue_size=10)
     tilt_cmd = rospy.Publisher(topics.tilt_command, Float64, queue_size=10)
     status = rospy.Publisher("~status", String, queue_size=10, latch=True)
+    needed = payload_inputs(core.config.payload)
     subscribers = [
         rospy.Subscriber(topics.joint_states, JointState, on_joint_states, queue_size=10, tcp_nodelay=True),
         rospy.Subscriber(topics.odom, Odometry, on_odom, queue_size=10, tcp_nodelay=True),
         rospy.Subscriber(topics.pile_range, Range, on_range, queue_size=10, tcp_nodelay=True),
-        rospy.Subscriber(topics.bucket_torque, Float64, on_torque, queue_size=10, tcp_nodelay=True),
+        *([rospy.Subscriber(topics.bucket_torque, Float64, on_torque, queue_size=10, tcp_nodelay=True)]
+          if "bucket_torque" in needed else []),
+        *([rospy.Subscriber(topics.lift_torque, Float64, on_lift_torque, queue_size=10, tcp_nodelay=True)]
+          if "lift_torque" in needed else []),
         *([rospy.Subscriber(topics.payload_mass, Float64, on_mass, queue_size=10, tcp_nodelay=True)]
-          if core.config.payload.source == "topic" else []),
+          if "payload_mass" in needed else []),
         rospy.Subscriber(topics.estop, Bool, on_estop, queue_size=10, tcp_nodelay=True),
         rospy.Subscriber(topics.scoop, Bool, on_scoop, queue_size=10, tcp_nodelay=True),
     ]

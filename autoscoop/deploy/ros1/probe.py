@@ -17,7 +17,7 @@ from typing import Any, Callable
 from autoscoop.deploy.ros1 import import_rospy
 from autoscoop.deploy.robot_config import TopicsSection
 
-SENSOR_TOPICS = ("joint_states", "odom", "pile_range", "bucket_torque")
+SENSOR_TOPICS = ("joint_states", "odom", "pile_range", "bucket_torque", "lift_torque")
 
 
 @dataclass(frozen=True)
@@ -35,11 +35,12 @@ class RobotProbe:
     Args:
         rate_hz: sensor publication rate.
         topics: topic names (the controller's defaults).
-        lift_rad, tilt_rad, speed_mps, range_m, torque_nm: the readings published.
+        lift_rad, tilt_rad, speed_mps, range_m, torque_nm, lift_torque_nm: the readings published.
     """
 
     def __init__(self, rate_hz: float = 50.0, topics: TopicsSection | None = None, lift_rad: float = 0.23,
-                 tilt_rad: float = 0.0, speed_mps: float = 0.0, range_m: float = 0.3, torque_nm: float = -1.0) -> None:
+                 tilt_rad: float = 0.0, speed_mps: float = 0.0, range_m: float = 0.3, torque_nm: float = -1.0,
+                 lift_torque_nm: float = -20.0) -> None:
         rospy = self.rospy = import_rospy()
         from geometry_msgs.msg import Twist  # noqa: PLC0415
         from nav_msgs.msg import Odometry  # noqa: PLC0415
@@ -50,7 +51,8 @@ class RobotProbe:
                     "Bool": Bool, "Twist": Twist}
         topics = topics or TopicsSection()
         self.period_s = 1.0 / rate_hz
-        self.values = {"lift": lift_rad, "tilt": tilt_rad, "speed": speed_mps, "range": range_m, "torque": torque_nm}
+        self.values = {"lift": lift_rad, "tilt": tilt_rad, "speed": speed_mps, "range": range_m, "torque": torque_nm,
+                       "lift_torque": lift_torque_nm}
         self.enabled = {name: True for name in SENSOR_TOPICS}
         self.last_published: dict[str, float] = {}
         self.custom: dict[str, Callable[[], Any]] = {}
@@ -64,6 +66,7 @@ class RobotProbe:
             "odom": rospy.Publisher(topics.odom, Odometry, queue_size=20, tcp_nodelay=True),
             "pile_range": rospy.Publisher(topics.pile_range, Range, queue_size=20, tcp_nodelay=True),
             "bucket_torque": rospy.Publisher(topics.bucket_torque, Float64, queue_size=20, tcp_nodelay=True),
+            "lift_torque": rospy.Publisher(topics.lift_torque, Float64, queue_size=20, tcp_nodelay=True),
             "estop": rospy.Publisher(topics.estop, Bool, queue_size=10, tcp_nodelay=True),
             "scoop": rospy.Publisher(topics.scoop, Bool, queue_size=10, tcp_nodelay=True),
         }
@@ -86,6 +89,8 @@ class RobotProbe:
             msg.twist.twist.linear.x = v["speed"]
         elif topic == "pile_range":
             msg = self.msg["Range"](min_range=0.0, max_range=4.0, range=v["range"])
+        elif topic == "lift_torque":
+            return self.msg["Float64"](v["lift_torque"])
         else:
             return self.msg["Float64"](v["torque"])
         msg.header.stamp = stamp

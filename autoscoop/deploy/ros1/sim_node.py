@@ -1,6 +1,6 @@
 """``autoscoop ros sim``: the MuJoCo scene as a ROS 1 node behind the robot's topics (like the paper's Gazebo).
 
-Publishes ``joint_states``, ``odom``, ``pile_range``, ``bucket_torque`` and ``payload_mass`` (the true
+Publishes ``joint_states``, ``odom``, ``pile_range``, ``bucket_torque``, ``lift_torque`` and ``payload_mass`` (the true
 mass in the bucket, for a controller with ``payload.source: topic``) every sensor period (about 48 Hz)
 in real time, each after the configured delay, and ``scoop`` (std_msgs/Bool): true when an
 episode starts, false when it ends. Obeys ``cmd_vel``, ``lift_controller/command`` and
@@ -109,6 +109,7 @@ def run_sim_node(bridge: SimBridge, episodes: int, seed: int = 0, delay_s: float
         "odom": rospy.Publisher(topics.odom, Odometry, queue_size=20, tcp_nodelay=True),
         "pile_range": rospy.Publisher(topics.pile_range, Range, queue_size=20, tcp_nodelay=True),
         "bucket_torque": rospy.Publisher(topics.bucket_torque, Float64, queue_size=20, tcp_nodelay=True),
+        "lift_torque": rospy.Publisher(topics.lift_torque, Float64, queue_size=20, tcp_nodelay=True),
         "payload_mass": rospy.Publisher(topics.payload_mass, Float64, queue_size=20, tcp_nodelay=True),
     }
     scoop = rospy.Publisher(topics.scoop, Bool, queue_size=10, tcp_nodelay=True)
@@ -135,7 +136,8 @@ def run_sim_node(bridge: SimBridge, episodes: int, seed: int = 0, delay_s: float
                          range=r.range_m)
         distance.header.stamp, distance.header.frame_id = stamp, "bucket_tip"
         return [("joint_states", joints), ("odom", odom), ("pile_range", distance),
-                ("bucket_torque", Float64(r.torque_nm)), ("payload_mass", Float64(r.payload_kg))]
+                ("bucket_torque", Float64(r.torque_nm)), ("lift_torque", Float64(r.lift_torque_nm)),
+                ("payload_mass", Float64(r.payload_kg))]
 
     def publish_due() -> None:
         for name, msg in line.pop_due(time.monotonic()):
