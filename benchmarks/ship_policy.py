@@ -24,6 +24,7 @@ def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("run_dir", type=Path)
     parser.add_argument("--file", type=Path, help="a snapshot of the run to ship instead of RUN_DIR/policy.safetensors")
+    parser.add_argument("--note", default="", help="how the policy was made, where the run directory does not say")
     parser.add_argument("--episodes", type=int, default=100)
     parser.add_argument("--angles", type=float, nargs="+", default=[25.0, 32.0, 40.0])
     args = parser.parse_args()
@@ -35,6 +36,8 @@ def main() -> int:
     metrics = {"source_run": args.run_dir.name, "source_file": str(source.relative_to(args.run_dir)), "algo": run["algo"], "seed": run["seed"],
                "training_episodes": run["episodes"], "training_wall_s": run.get("wall_s"),
                "training_config": (args.run_dir / "config.yaml").read_text(), "piles": {}}
+    if args.note:
+        metrics["note"] = args.note
     for angle in args.angles:
         out = args.run_dir / f"ship_eval_{angle:g}deg.json"
         subprocess.run([sys.executable, "-m", "autoscoop.cli", "eval", "--policy", "default", "--episodes",
