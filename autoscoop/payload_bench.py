@@ -33,7 +33,7 @@ from autoscoop import __version__, kinematics
 from autoscoop import payload as payload_mod
 from autoscoop.config import ScoopConfig
 from autoscoop.records import EpisodeRecord
-from autoscoop.sim.load_cell import ReadingWindow, chassis_pitch_rad, instant_reading
+from autoscoop.sim.load_cell import ReadingWindow, instant_reading
 from autoscoop.sim.scene import ScoopSim
 from autoscoop.state import STATE_SIZE
 
@@ -141,7 +141,7 @@ class _Hold:
         readings = np.zeros((n, 5))
         for k in range(n):
             mujoco.mj_step(m, d)
-            readings[k] = [sim.lift_rad, sim.tilt_rad, sim.lift_torque_nm, sim.tilt_torque_nm, chassis_pitch_rad(sim)]
+            readings[k] = instant_reading(sim).as_array()
         instantaneous = payload_mod.mass_eq8(*readings[:, :4].T, chassis_pitch_rad=readings[:, 4])
         mean = readings.mean(axis=0)
         inside, heaped = carried_particles(sim)

@@ -26,7 +26,6 @@ commanded target by ``action * (upper limit - lower limit)``, clipped to the lim
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -58,11 +57,6 @@ class Measurements:
     lift_rad: float
     tilt_rad: float
 
-    def is_finite(self) -> bool:
-        """Whether every reading is a finite number."""
-        return all(math.isfinite(x) for x in (self.mass_kg, self.pile_distance_m, self.speed_mps,
-                                              self.lift_rad, self.tilt_rad))
-
 
 def build_state(now: Measurements, previous: Measurements | None, rated_load_kg: float) -> np.ndarray:
     """The 12-number state (float32) from this step's and the previous step's measurements.
@@ -73,14 +67,14 @@ def build_state(now: Measurements, previous: Measurements | None, rated_load_kg:
         rated_load_kg: the bucket's rated load, for w = mass / rated load.
 
     Returns:
-        (12,) float32 array in the order of :data:`STATE_NAMES`.
+        (12,) float32 array in the order of :data:`STATE_NAMES`; (12, n) when the measurements are arrays of n.
     """
     before = now if previous is None else previous
     pose = kinematics.arm_pose(now.lift_rad, now.tilt_rad)
     return np.array([
         now.mass_kg / rated_load_kg,
-        pose.tip[0], pose.tip[1],
-        pose.bucket_joint[0], pose.bucket_joint[1],
+        pose.tip[..., 0], pose.tip[..., 1],
+        pose.bucket_joint[..., 0], pose.bucket_joint[..., 1],
         now.pile_distance_m,
         now.speed_mps, now.lift_rad, now.tilt_rad,
         now.speed_mps - before.speed_mps, now.lift_rad - before.lift_rad, now.tilt_rad - before.tilt_rad,

@@ -8,6 +8,8 @@ import gymnasium as gym
 import torch
 from stable_baselines3.common.policies import ContinuousCritic
 from stable_baselines3.common.torch_layers import BaseFeaturesExtractor
+from stable_baselines3.sac.policies import Actor as SACActor
+from stable_baselines3.sac.policies import SACPolicy
 from stable_baselines3.td3.policies import Actor, TD3Policy
 from torch import nn
 
@@ -61,26 +63,29 @@ class PaperCriticSB3(ContinuousCritic):
         return self.q_networks[0](features, actions)
 
 
-class PaperPolicy(TD3Policy):
-    """TD3Policy with the paper's actor and critic (used by DDPG and TD3)."""
+class _PaperDefaults:
+    """What the paper's SB3 policies share: its hidden layers, the state normalisation, its critic."""
 
     def __init__(self, *args: Any, **kwargs: Any) -> None:
         kwargs.setdefault("net_arch", list(PAPER_LAYERS))
         kwargs.setdefault("features_extractor_class", NormalizedState)
-        kwargs.setdefault("activation_fn", nn.ReLU)
         super().__init__(*args, **kwargs)
-
-    def make_actor(self, features_extractor: BaseFeaturesExtractor | None = None) -> PaperActorSB3:
-        actor_kwargs = self._update_features_extractor(self.actor_kwargs, features_extractor)
-        return PaperActorSB3(**actor_kwargs).to(self.device)
 
     def make_critic(self, features_extractor: BaseFeaturesExtractor | None = None) -> PaperCriticSB3:
         critic_kwargs = self._update_features_extractor(self.critic_kwargs, features_extractor)
         return PaperCriticSB3(**critic_kwargs).to(self.device)
 
 
-from stable_baselines3.sac.policies import Actor as SACActor  # noqa: E402
-from stable_baselines3.sac.policies import SACPolicy  # noqa: E402
+class PaperPolicy(_PaperDefaults, TD3Policy):
+    """TD3Policy with the paper's actor and critic (used by DDPG and TD3)."""
+
+    def __init__(self, *args: Any, **kwargs: Any) -> None:
+        kwargs.setdefault("activation_fn", nn.ReLU)
+        super().__init__(*args, **kwargs)
+
+    def make_actor(self, features_extractor: BaseFeaturesExtractor | None = None) -> PaperActorSB3:
+        actor_kwargs = self._update_features_extractor(self.actor_kwargs, features_extractor)
+        return PaperActorSB3(**actor_kwargs).to(self.device)
 
 
 class PaperSACActor(SACActor):
@@ -91,18 +96,9 @@ class PaperSACActor(SACActor):
         self.latent_pi = paper_mlp(self.features_dim, self.net_arch)
 
 
-class PaperSACPolicy(SACPolicy):
+class PaperSACPolicy(_PaperDefaults, SACPolicy):
     """SACPolicy with the paper's hidden layers for the actor and the paper's critics."""
-
-    def __init__(self, *args: Any, **kwargs: Any) -> None:
-        kwargs.setdefault("net_arch", list(PAPER_LAYERS))
-        kwargs.setdefault("features_extractor_class", NormalizedState)
-        super().__init__(*args, **kwargs)
 
     def make_actor(self, features_extractor: BaseFeaturesExtractor | None = None) -> PaperSACActor:
         actor_kwargs = self._update_features_extractor(self.actor_kwargs, features_extractor)
         return PaperSACActor(**actor_kwargs).to(self.device)
-
-    def make_critic(self, features_extractor: BaseFeaturesExtractor | None = None) -> PaperCriticSB3:
-        critic_kwargs = self._update_features_extractor(self.critic_kwargs, features_extractor)
-        return PaperCriticSB3(**critic_kwargs).to(self.device)

@@ -46,7 +46,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     sim.add_argument("--joint-noise-rad", type=float, default=0.0, help="noise (std) on the joint angles, rad")
     sim.add_argument("--speed-noise-mps", type=float, default=0.0, help="noise (std) on the odometry speed, m/s")
     sim.add_argument("--range-noise-m", type=float, default=0.0, help="noise (std) on the range to the pile, m")
-    sim.add_argument("--torque-noise-nm", type=float, default=0.0, help="noise (std) on the bucket torque, N*m")
+    sim.add_argument("--torque-noise-nm", type=float, default=0.0, help="noise (std) on each joint torque (bucket and lift), N*m")
     sim.add_argument("--robot-config", type=Path,
                      help="the robot's YAML: topic and joint names, and potentiometer calibration (raw readings)")
     sim.add_argument("--label", help="policy name for the summary (default: the controller's ~policy parameter)")
@@ -60,7 +60,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 _CONTROLLER_DOC = """Run a policy on the robot through ROS 1.
 
 Subscribes: joint_states (sensor_msgs/JointState: lift, tilt), odom (nav_msgs/Odometry), pile_range
-(sensor_msgs/Range), bucket_torque (std_msgs/Float64; or payload_mass in kg with payload.source: topic),
+(sensor_msgs/Range), bucket_torque and lift_torque (std_msgs/Float64, N*m: the payload mass by eq. 8;
+payload.method: eq4 needs bucket_torque only, payload.source: topic reads payload_mass in kg instead),
 estop (std_msgs/Bool), scoop (std_msgs/Bool: true starts a scoop, false ends it). Publishes: cmd_vel
 (geometry_msgs/Twist), lift_controller/command and tilt_controller/command (std_msgs/Float64, rad),
 ~status (std_msgs/String).
@@ -70,8 +71,8 @@ not finite, or out of range -> zero velocity and the arm held, until the inputs 
 estop true -> the same until estop false. Not a substitute for the hardware emergency stop.
 """
 
-_SIM_DOC = """The simulator as a ROS 1 node: publishes joint_states, odom, pile_range and bucket_torque (with
-noise and delay as configured) in real time, obeys cmd_vel and the joint commands, and starts each
+_SIM_DOC = """The simulator as a ROS 1 node: publishes joint_states, odom, pile_range, bucket_torque,
+lift_torque and payload_mass (with noise and delay as configured) in real time, obeys cmd_vel and the joint commands, and starts each
 episode on the scoop topic. --episodes N --json OUT writes the summary of `autoscoop eval`.
 """
 

@@ -385,11 +385,10 @@ class ControllerCore:
         if not self.limiter.contains(command):  # last guard: never let a bad number out
             self.log("error", f"refused an out-of-limit command {command}; stopping")
             command = Command(0.0, None, None, "fault", "internal: out-of-limit command refused")
-        lift = math.nan if command.lift_rad is None else command.lift_rad
-        tilt = math.nan if command.tilt_rad is None else command.tilt_rad
-        if self.last_command is not None and command.lift_rad is None:
-            lift, tilt = self.last_command[1], self.last_command[2]
-        self.last_command = np.array([command.speed_mps, lift, tilt])
+        published = command.as_array()
+        if self.last_command is not None and command.lift_rad is None:  # the arm keeps its last command
+            published[1:] = self.last_command[1:]
+        self.last_command = published
         return command
 
     def _start_episode(self, now: float) -> None:

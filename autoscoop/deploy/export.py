@@ -65,24 +65,25 @@ def export_onnx(actor: Any, path: str | Path, metadata: dict[str, Any] | None = 
     return path
 
 
-def random_states(n: int, seed: int = 0) -> np.ndarray:
-    """``n`` random states (n, 12) float32 over the robot's workspace, in :data:`STATE_NAMES` order.
+def random_states(n: int, seed: int = 0, rated_load_kg: float = 7.0) -> np.ndarray:
+    """``n`` random states (n, 12) float32 over the robot's workspace, built by :func:`autoscoop.state.build_state`.
 
-    Joint angles uniform over their ranges (tip and bucket joint from the arm's kinematics, as
-    :func:`autoscoop.state.build_state` computes them), mass 0-10 kg over the 7 kg rated load,
-    0-1.2 m to the pile, +-0.1 m/s, and the changes within one step's reach.
+    Joint angles uniform over their ranges, mass 0-10 kg, 0-1.2 m to the pile, +-0.1 m/s, and the
+    changes since the previous step within one step's reach (+-0.05 m/s, +-0.1 rad lift, +-0.25 rad tilt).
     """
     from autoscoop import kinematics  # noqa: PLC0415
+    from autoscoop.state import Measurements, build_state  # noqa: PLC0415
 
     rng = np.random.default_rng(seed)
     lift = rng.uniform(*kinematics.LIFT_RANGE_RAD, n)
     tilt = rng.uniform(*kinematics.TILT_RANGE_RAD, n)
-    pose = kinematics.arm_pose(lift, tilt)
-    return np.column_stack([
-        rng.uniform(0.0, 10.0 / 7.0, n), pose.tip[:, 0], pose.tip[:, 1], pose.bucket_joint[:, 0],
-        pose.bucket_joint[:, 1], rng.uniform(0.0, 1.2, n), rng.uniform(-0.1, 0.1, n), lift, tilt,
-        rng.uniform(-0.05, 0.05, n), rng.uniform(-0.1, 0.1, n), rng.uniform(-0.25, 0.25, n),
-    ]).astype(np.float32)
+    mass = rng.uniform(0.0, 10.0, n)
+    pile, speed = rng.uniform(0.0, 1.2, n), rng.uniform(-0.1, 0.1, n)
+    change = np.column_stack([rng.uniform(-0.05, 0.05, n), rng.uniform(-0.1, 0.1, n), rng.uniform(-0.25, 0.25, n)])
+    now = Measurements(mass_kg=mass, pile_distance_m=pile, speed_mps=speed, lift_rad=lift, tilt_rad=tilt)
+    before = Measurements(mass_kg=mass, pile_distance_m=pile, speed_mps=speed - change[:, 0],
+                          lift_rad=lift - change[:, 1], tilt_rad=tilt - change[:, 2])
+    return build_state(now, before, rated_load_kg).T.copy()
 
 
 def check_parity(actor: Any, onnx_path: str | Path, states: np.ndarray, timing_steps: int = 2000) -> dict[str, Any]:

@@ -66,11 +66,6 @@ class InputWatchdog:
                  if last is not None and name not in self._bad and last + self.timeout_s >= now]
         return min(times, default=math.inf)
 
-    def age(self, name: str, now: float) -> float:
-        """Seconds since ``name``'s last valid reading (``inf`` if none)."""
-        last = self._last_valid[name]
-        return math.inf if last is None else now - last
-
 
 @dataclass(frozen=True)
 class Command:

@@ -14,6 +14,7 @@ import importlib
 import os
 import sys
 from types import ModuleType
+from typing import Any, Iterable
 
 DEBIAN_PACKAGES = ("python3-rospy", "python3-rosmaster", "python3-std-msgs", "python3-sensor-msgs",
                    "python3-geometry-msgs", "python3-nav-msgs")
@@ -22,6 +23,16 @@ SYSTEM_SITE = "/usr/lib/python3/dist-packages"
 INSTALL_HINT = ("ROS 1 is not installed: as root run `apt-get update && apt-get install -y --no-install-recommends "
                 + " ".join(DEBIAN_PACKAGES) + "` (Debian bookworm), or set AUTOSCOOP_ROS_PYTHONPATH to the folder "
                 "that holds rospy")
+
+
+MESSAGE_TYPES = {
+    "joint_states": ("sensor_msgs.msg", "JointState"), "odom": ("nav_msgs.msg", "Odometry"),
+    "pile_range": ("sensor_msgs.msg", "Range"), "bucket_torque": ("std_msgs.msg", "Float64"),
+    "lift_torque": ("std_msgs.msg", "Float64"), "payload_mass": ("std_msgs.msg", "Float64"),
+    "estop": ("std_msgs.msg", "Bool"), "scoop": ("std_msgs.msg", "Bool"), "cmd_vel": ("geometry_msgs.msg", "Twist"),
+    "lift_command": ("std_msgs.msg", "Float64"), "tilt_command": ("std_msgs.msg", "Float64"),
+}
+"""The message type of each of the controller's topics (keys of ``robot_config.TOPIC_DEFAULTS``)."""
 
 
 class RosUnavailable(RuntimeError):
@@ -60,3 +71,16 @@ def ros_available() -> bool:
     except RosUnavailable:
         return False
     return shutil.which("rosmaster") is not None
+
+
+def message_class(topic: str) -> type:
+    """The message class a topic carries (``MESSAGE_TYPES``), e.g. ``message_class("odom")`` is Odometry."""
+    module, name = MESSAGE_TYPES[topic]
+    return getattr(importlib.import_module(module), name)
+
+
+def publishers(topics: Any, names: Iterable[str], queue_size: int = 20) -> dict[str, Any]:
+    """One latency-friendly (``tcp_nodelay``) publisher per topic key, on the names in ``topics`` (a TopicsSection)."""
+    rospy = import_rospy()
+    return {name: rospy.Publisher(getattr(topics, name), message_class(name), queue_size=queue_size,
+                                  tcp_nodelay=True) for name in names}

@@ -1,7 +1,8 @@
 """``autoscoop ros controller``: the controller as a ROS 1 node (rospy front end of ControllerCore).
 
 Subscribes (relative names, remappable with ``name:=new``): ``joint_states``, ``odom``,
-``pile_range``, ``bucket_torque`` (or ``payload_mass`` with ``payload.source: topic``), ``estop``,
+``pile_range``, ``bucket_torque`` and ``lift_torque`` (``bucket_torque`` alone with ``payload.method: eq4``,
+``payload_mass`` instead with ``payload.source: topic``), ``estop``,
 ``scoop``. Publishes: ``cmd_vel``,
 ``lift_controller/command``, ``tilt_controller/command``, and ``~status`` (std_msgs/String, latched:
 the mode and why the robot is stopped). All logic is in :mod:`autoscoop.deploy.controller`; this

@@ -14,7 +14,7 @@ import time
 from dataclasses import dataclass
 from typing import Any, Callable
 
-from autoscoop.deploy.ros1 import import_rospy
+from autoscoop.deploy.ros1 import import_rospy, publishers
 from autoscoop.deploy.robot_config import TopicsSection
 
 SENSOR_TOPICS = ("joint_states", "odom", "pile_range", "bucket_torque", "lift_torque")
@@ -61,15 +61,7 @@ class RobotProbe:
         self.errors: list[str] = []
         self._lock = threading.Lock()
         self._stop = threading.Event()
-        self.publishers = {
-            "joint_states": rospy.Publisher(topics.joint_states, JointState, queue_size=20, tcp_nodelay=True),
-            "odom": rospy.Publisher(topics.odom, Odometry, queue_size=20, tcp_nodelay=True),
-            "pile_range": rospy.Publisher(topics.pile_range, Range, queue_size=20, tcp_nodelay=True),
-            "bucket_torque": rospy.Publisher(topics.bucket_torque, Float64, queue_size=20, tcp_nodelay=True),
-            "lift_torque": rospy.Publisher(topics.lift_torque, Float64, queue_size=20, tcp_nodelay=True),
-            "estop": rospy.Publisher(topics.estop, Bool, queue_size=10, tcp_nodelay=True),
-            "scoop": rospy.Publisher(topics.scoop, Bool, queue_size=10, tcp_nodelay=True),
-        }
+        self.publishers = {**publishers(topics, SENSOR_TOPICS), **publishers(topics, ("estop", "scoop"), queue_size=10)}
         self.subscribers = [
             rospy.Subscriber(topics.cmd_vel, Twist, self._record("cmd_vel", lambda m: m.linear.x), tcp_nodelay=True),
             rospy.Subscriber(topics.lift_command, Float64, self._record("lift", lambda m: m.data), tcp_nodelay=True),

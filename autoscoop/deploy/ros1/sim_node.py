@@ -25,7 +25,7 @@ from typing import Callable
 
 import numpy as np
 
-from autoscoop.deploy.ros1 import import_rospy
+from autoscoop.deploy.ros1 import import_rospy, publishers
 from autoscoop.deploy.sim_bridge import DelayLine, SensorReadings, SimBridge
 from autoscoop.evaluate import EpisodeResult
 
@@ -104,15 +104,9 @@ def run_sim_node(bridge: SimBridge, episodes: int, seed: int = 0, delay_s: float
             time.sleep(0.0005)
         return deadline
 
-    publishers = {
-        "joint_states": rospy.Publisher(topics.joint_states, JointState, queue_size=20, tcp_nodelay=True),
-        "odom": rospy.Publisher(topics.odom, Odometry, queue_size=20, tcp_nodelay=True),
-        "pile_range": rospy.Publisher(topics.pile_range, Range, queue_size=20, tcp_nodelay=True),
-        "bucket_torque": rospy.Publisher(topics.bucket_torque, Float64, queue_size=20, tcp_nodelay=True),
-        "lift_torque": rospy.Publisher(topics.lift_torque, Float64, queue_size=20, tcp_nodelay=True),
-        "payload_mass": rospy.Publisher(topics.payload_mass, Float64, queue_size=20, tcp_nodelay=True),
-    }
-    scoop = rospy.Publisher(topics.scoop, Bool, queue_size=10, tcp_nodelay=True)
+    sensors = publishers(topics, ("joint_states", "odom", "pile_range", "bucket_torque", "lift_torque",
+                                  "payload_mass"))
+    scoop = publishers(topics, ("scoop",), queue_size=10)["scoop"]
     subscribers = [
         rospy.Subscriber(topics.cmd_vel, Twist, on_command("speed", lambda m: m.linear.x), queue_size=10,
                          tcp_nodelay=True),
@@ -141,7 +135,7 @@ def run_sim_node(bridge: SimBridge, episodes: int, seed: int = 0, delay_s: float
 
     def publish_due() -> None:
         for name, msg in line.pop_due(time.monotonic()):
-            publishers[name].publish(msg)
+            sensors[name].publish(msg)
 
     def wait_until(deadline: float) -> None:
         while not rospy.is_shutdown():
@@ -232,7 +226,7 @@ def _publishers_of(rospy, topic: str) -> list[str]:  # noqa: ANN001 - the rospy 
 
     name = rospy.resolve_name(topic)
     try:
-        publishers, _, _ = rosgraph.Master(rospy.get_name()).getSystemState()
+        published, _, _ = rosgraph.Master(rospy.get_name()).getSystemState()
     except (rosgraph.MasterError, OSError):
         return []
-    return next((nodes for t, nodes in publishers if t == name), [])
+    return next((nodes for t, nodes in published if t == name), [])
