@@ -47,7 +47,7 @@ class EpisodeRecorder(gym.Wrapper):
             **self.base_meta,
             "seed": seed,
             "autoscoop_version": __version__,
-            "pile": {"angle_deg": config.pile.angle_deg, "n_particles": config.pile.n_particles,
+            "pile": {"angle_deg": sim.pile_angle_deg, "n_particles": config.pile.n_particles,  # this episode's
                      "radius_m": config.pile.radius_m},
             "terminal_point_m": [config.reward.terminal_dx_m, config.reward.terminal_z_m],
             "control_period_s": config.env.control_period_s,

@@ -42,7 +42,7 @@ from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv
 from tqdm import tqdm
 
 from autoscoop import __version__
-from autoscoop.agents.policy_files import actor_from_sb3, save_actor, sha256_of
+from autoscoop.agents.policy_files import PolicyFileError, actor_from_sb3, save_actor, sha256_of
 from autoscoop.config import ScoopConfig, from_dict, save_yaml
 from autoscoop.envs.scoop import make_scoop_env
 
@@ -284,21 +284,33 @@ class PolicyEvaluator:
         logger.record("eval/delivered_fill", score)
         logger.record("eval/success", row["success"])
         # every evaluated actor stays (80 kB each): a policy judged on more episodes later can be picked
-        save_actor(actor_from_sb3(model), self.run_dir / "evaluated" / f"episode_{episode:05d}.safetensors",
-                   {**_actor_meta(self.info, self.run_dir), "selected_at_episode": episode,
-                    "evaluation_delivered_fill": score})
+        meta = {**_actor_meta(self.info, self.run_dir), "selected_at_episode": episode}
+        save_safe_actor(model, self.run_dir / "evaluated" / f"episode_{episode:05d}.safetensors",
+                        {**meta, "evaluation_delivered_fill": score})
         if score > self.best:
             self.best = score
             model.save(self.run_dir / "policy.zip")
-            save_actor(actor_from_sb3(model), self.run_dir / "policy.safetensors",
-                       {**_actor_meta(self.info, self.run_dir), "selected_at_episode": episode,
-                        "selection_score_delivered_fill": score})
+            save_safe_actor(model, self.run_dir / "policy.safetensors", {**meta, "selection_score_delivered_fill": score})
             self.info.update(best_score=score, best_episode=episode)
         return score
 
     def close(self) -> None:
         self.csv_file.close()
         self.env.close()
+
+
+def save_safe_actor(model: Any, path: Path, metadata: dict[str, Any]) -> bool:
+    """Write the model's actor in the safe format; ``False`` (nothing written) where that format cannot hold it.
+
+    The safe format holds the paper's deterministic actor (DDPG, TD3, SAC's mean); PPO's Gaussian
+    policy is kept in ``policy.zip`` only, which its run directory vouches for.
+    """
+    try:
+        actor = actor_from_sb3(model)
+    except PolicyFileError:
+        return False
+    save_actor(actor, path, metadata)
+    return True
 
 
 def _actor_meta(info: dict[str, Any], run_dir: Path) -> dict[str, Any]:
@@ -356,6 +368,14 @@ def init_model_zip(run_dir: Path, algo: str, trust: bool) -> Path:
     return zip_path
 
 
+def _drop_evaluations_after(path: Path, episodes: int) -> None:
+    """Keep the header and the evaluations made at or before ``episodes`` (what the checkpoint had seen)."""
+    if not path.exists():
+        return
+    lines = path.read_text().splitlines(keepends=True)
+    path.write_text("".join(lines[:1] + [line for line in lines[1:] if int(line.split(",", 1)[0]) <= episodes]))
+
+
 def _default_run_dir(args: TrainArgs) -> Path:
     return Path("runs") / f"{args.algo}-s{args.seed}-{time.strftime('%Y%m%d-%H%M%S')}"
 
@@ -401,6 +421,7 @@ def resume(run_dir: Path, progress: bool = True) -> Path:
     if sha256_of(checkpoint / "model.zip") != state["model_sha256"]:
         raise ValueError(f"{checkpoint / 'model.zip'} does not match its recorded hash; refusing to load it")
     _truncate_csv(run_dir / "episodes.csv", state["episodes_done"])
+    _drop_evaluations_after(run_dir / "evaluations.csv", state["episodes_done"])  # they are run again
     env = _make_vec_env(config, info["n_envs"], info["seed"] + state["episodes_done"])
     algo_cls = ALGORITHMS[info["algo"]]
     model = algo_cls.load(checkpoint / "model.zip", env=env, device="cpu")
@@ -457,10 +478,10 @@ def _run(run_dir: Path, config: ScoopConfig, spec: dict[str, Any], info: dict[st
             evaluator.close()
         info["wall_s"] = round(info.get("wall_s", 0.0) + time.time() - started, 1)
         _write_run_json(run_dir, info)
-    save_actor(actor_from_sb3(model), run_dir / "last.safetensors", _actor_meta(info, run_dir))
+    save_safe_actor(model, run_dir / "last.safetensors", _actor_meta(info, run_dir))
     if not (run_dir / "policy.zip").exists():  # no evaluation ran: the last policy is the policy
         model.save(run_dir / "policy.zip")
-        save_actor(actor_from_sb3(model), run_dir / "policy.safetensors", _actor_meta(info, run_dir))
+        save_safe_actor(model, run_dir / "policy.safetensors", _actor_meta(info, run_dir))
     info.update(status="finished", policy_zip_sha256=sha256_of(run_dir / "policy.zip"))
     _write_run_json(run_dir, info)
     shutil.rmtree(run_dir / "checkpoint", ignore_errors=True)

@@ -47,3 +47,12 @@ def test_bench_command_reports_the_three_speeds(tmp_path):
     result = json.loads(out.read_text())
     assert result["physics_steps_per_s"] > 0 and result["env_steps_per_s"] > 0 and result["realtime_factor"] > 0
     assert os.sched_getaffinity(0) == cores  # the pin to one core is undone
+
+
+def test_the_heuristic_scales_its_speed_with_the_configs_limit():
+    from autoscoop.agents.loading import heuristic_for
+    from autoscoop.config import ScoopConfig
+
+    faster = ScoopConfig().with_overrides({"robot.max_speed_mps": 0.2})
+    assert heuristic_for(faster).params.limits.max_speed_mps == 0.2
+    assert heuristic_for(ScoopConfig()).params.limits.max_speed_mps == ScoopConfig().robot.max_speed_mps

@@ -66,3 +66,16 @@ def test_loading_something_else_fails_clearly(tmp_path):
     np.savez(path, x=np.zeros(3))
     with pytest.raises(ValueError, match="not an autoscoop episode record"):
         load_record(path)
+
+
+def test_a_record_names_the_pile_the_episode_had_in_a_mix():
+    config = ScoopConfig().with_overrides({"pile.angle_mix_deg": [25, 40], "pile.variants": 2})
+    env = EpisodeRecorder(make_scoop_env(config), {"policy": "test"})
+    angles = set()
+    for seed in range(6):
+        env.reset(seed=seed)
+        angle = env.record.meta["pile"]["angle_deg"]
+        assert angle == env.unwrapped.sim.pile_angle_deg
+        angles.add(angle)
+    assert angles == {25.0, 40.0}
+    env.close()

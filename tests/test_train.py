@@ -104,7 +104,7 @@ def test_resume_continues_steps_and_keeps_the_replay_buffer(tmp_path, monkeypatc
     monkeypatch.setattr(train_mod.EpisodeLogger, "_end_episode", crash_after_five)
     with pytest.raises(KeyboardInterrupt):
         train_mod.train(train_mod.TrainArgs(episodes=8, checkpoint_every=4, out=out, progress=False,
-                                            overrides={"pile.variants": 2}))
+                                            overrides={"pile.variants": 2}, eval_every=5, eval_episodes=1))
     state = json.loads((out / "checkpoint" / "state.json").read_text())
     assert state["episodes_done"] == 4
     saved = DDPG.load(out / "checkpoint" / "model.zip")
@@ -128,6 +128,8 @@ def test_resume_continues_steps_and_keeps_the_replay_buffer(tmp_path, monkeypatc
     rows = list(csv.DictReader(open(out / "episodes.csv")))
     assert [int(r["episode"]) for r in rows] == list(range(1, 9))
     assert json.loads((out / "run.json").read_text())["status"] == "finished"
+    # the evaluation at episode 5 came after the checkpoint: it is run again, and listed once
+    assert [int(r["episode"]) for r in csv.DictReader(open(out / "evaluations.csv"))] == [5, 8]
 
 
 def test_kill_9_loses_at_most_one_checkpoint_interval(tmp_path):
@@ -199,3 +201,13 @@ def test_init_fine_tunes_from_a_finished_run_and_checks_what_it_loads(tmp_path):
                  *FAST]) == 2
     assert main(["train", "--hyper", "hyperparams.lr=1", "--episodes", "1", "--out", str(tmp_path / "c"), *FAST]) == 2
     assert not any((tmp_path / name / "run.json").exists() for name in "abc")
+
+
+def test_ppo_trains_and_its_run_directory_loads(tmp_path):
+    """PPO's Gaussian policy has no paper actor: the run keeps it in its vouched-for zip."""
+    out = tmp_path / "ppo"
+    assert main(["train", "--algo", "ppo", "--episodes", "3", "--eval-every", "3", "--eval-episodes", "1",
+                 "--out", str(out), *FAST]) == 0
+    assert (out / "policy.zip").is_file() and not (out / "policy.safetensors").exists()
+    policy = load_policy(str(out), ScoopConfig())
+    assert policy.act(np.zeros(12, dtype=np.float32)).shape == (3,)

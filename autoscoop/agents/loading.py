@@ -9,6 +9,7 @@ from pathlib import Path
 from autoscoop.agents.base import Policy
 from autoscoop.agents.heuristic import HeuristicParams, HeuristicScooper
 from autoscoop.config import ScoopConfig
+from autoscoop.state import CommandLimits
 
 DEFAULT_POLICY = "default"
 """Name of the policy shipped inside the package (``autoscoop/policies/default.safetensors``)."""
@@ -19,10 +20,11 @@ class PolicyError(ValueError):
 
 
 def heuristic_for(config: ScoopConfig) -> HeuristicScooper:
-    """The scripted baseline, aimed at the config's terminal point and control period."""
+    """The scripted baseline, aimed at the config's terminal point, with its control period and speed limit."""
     return HeuristicScooper(HeuristicParams(
         terminal_dx_m=config.reward.terminal_dx_m, terminal_z_m=config.reward.terminal_z_m,
-        control_period_s=config.env.control_period_s))
+        control_period_s=config.env.control_period_s,
+        limits=CommandLimits(max_speed_mps=config.robot.max_speed_mps)))
 
 
 def default_policy_path() -> Path:
@@ -58,6 +60,8 @@ def load_policy(spec: str, config: ScoopConfig, trust: bool = False) -> Policy:
     path = Path(spec)
     if path.is_dir() and (path / "policy.safetensors").is_file():
         path = path / "policy.safetensors"
+    elif path.is_dir() and (path / "policy.zip").is_file():  # PPO: no safe actor file; the run vouches for its zip
+        path = path / "policy.zip"
     if not path.exists():
         raise PolicyError(f"policy {spec!r} not found; use heuristic, default, a .safetensors/.onnx file, "
                           "a run directory, or an SB3 .zip")

@@ -99,7 +99,7 @@ def actor_from_sb3(model: Any) -> PaperActor:
     """Copy the deterministic actor of an SB3 model trained with the paper's policies into a PaperActor."""
     from autoscoop.agents.sb3_policies import PaperActorSB3  # noqa: PLC0415
 
-    sb3_actor = model.policy.actor
+    sb3_actor = getattr(model.policy, "actor", None)  # PPO's ActorCriticPolicy has none
     if isinstance(sb3_actor, PaperActorSB3):  # DDPG, TD3: mu = Sequential(body, head, tanh)
         body, head = sb3_actor.mu[0], sb3_actor.mu[1]
     elif hasattr(sb3_actor, "latent_pi") and hasattr(sb3_actor, "mu"):  # SAC with the paper's body
