@@ -98,7 +98,11 @@ class PileConfig(_Section):
     radius_m: float = _field(0.034, "m", "particle radius", 0.01, 0.08)
     particle_mass_kg: float = _field(0.3, "kg", "mass of one particle", 0.01, 5.0)
     friction: float = _field(1.0, "-", "sliding friction of particle contacts", 0.0, 2.0)
-    rolling_damping_nms: float = _field(0.5, "N*m*s/rad", "damping of particle spin: the rolling resistance of angular gravel", 0.0, 10.0)
+    rolling: bool = _field(False, "-", "particles may roll (free joints, spin damped by rolling_damping_nms); false: "
+                           "they slide without turning (three slide joints each), the limit of angular gravel, "
+                           "a fifth cheaper to simulate", choices=(False, True))
+    rolling_damping_nms: float = _field(0.5, "N*m*s/rad", "damping of particle spin when pile.rolling: the rolling "
+                                        "resistance of angular gravel", 0.0, 10.0)
     across: int = _field(8, "-", "particles per row across the pile (y)", 1, 20)
     jitter_m: float = _field(0.003, "m", "largest random offset of a particle's start position", 0.0, 0.02)
     settle_s: float = _field(1.0, "s", "physics time a new pile settles (then on until it rests, at most 3 s more)", 0.0, 5.0)
@@ -126,7 +130,7 @@ class EnvConfig(_Section):
     _section = "env"
     control_period_s: float = _field(0.25, "s", "time between actions", 0.02, 1.0)
     max_episode_s: float = _field(8.0, "s", "episode time limit", 0.5, 60.0)
-    timestep_s: float = _field(0.25 / 12, "s", "MuJoCo physics step (a divisor of the control period)", 0.0005, 0.04)
+    timestep_s: float = _field(0.25 / 10, "s", "MuJoCo physics step (a divisor of the control period)", 0.0005, 0.04)
     mass_source: str = _field("truth", "-", "w_t from counting particles (truth) or from the joint torques (torque)",
                               choices=("truth", "torque"))
     load_cell_noise_nm: float = _field(0.2, "N*m", "std of torque noise when mass_source = torque", 0.0, 20.0)

@@ -1,5 +1,6 @@
 """The MJCF compiles, steps with random controls without MuJoCo warnings, and matches the kinematics."""
 
+import math
 import warnings
 
 import mujoco
@@ -34,7 +35,7 @@ def test_random_controls_for_two_seconds_raise_no_warning():
     sim.reset(np.random.default_rng(0))
     rng = np.random.default_rng(1)
     steps_per_command = 6
-    for _ in range(int(2.0 / (sim.model.opt.timestep * steps_per_command))):
+    for _ in range(math.ceil(2.0 / (sim.model.opt.timestep * steps_per_command) - 1e-9)):
         sim.command(rng.uniform(-0.1, 0.1), rng.uniform(-0.4, 0.4), rng.uniform(-1.0, 1.0))
         sim.step(steps_per_command)
     assert sim.elapsed_s >= 2.0 - 1e-9

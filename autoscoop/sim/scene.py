@@ -42,9 +42,15 @@ SLEEP_TOLERANCE = 0.03
 """Bodies slower than this (MuJoCo's sleep_tolerance) fall asleep; a resting pile then costs almost nothing."""
 
 
+CONTACT_STEPS_PER_TIME_CONSTANT = 5.0 / 3.0
+"""Contact time constant in physics steps, at least. MuJoCo's own floor is 2 (its ``refsafe``
+flag, turned off here): at the default 0.025 s step, 5/3 keeps the stiffness the contacts had at
+the earlier 1/48 s step (0.0417 s); the implicit integrator is stable there, 4/3 is not."""
+
+
 def contact_time_constant_s(timestep_s: float) -> float:
-    """Contact stiffness time constant: MuJoCo's default 0.02 s, never below two physics steps."""
-    return max(0.02, 2.0 * timestep_s)
+    """Contact stiffness time constant: MuJoCo's default 0.02 s, never below 5/3 physics steps."""
+    return max(0.02, CONTACT_STEPS_PER_TIME_CONSTANT * timestep_s)
 
 
 def build_spec(config: ScoopConfig) -> mujoco.MjSpec:
@@ -53,6 +59,7 @@ def build_spec(config: ScoopConfig) -> mujoco.MjSpec:
     spec.option.timestep = config.env.timestep_s
     spec.option.enableflags |= int(mujoco.mjtEnableBit.mjENBL_SLEEP)
     spec.option.sleep_tolerance = SLEEP_TOLERANCE
+    spec.option.disableflags |= int(mujoco.mjtDisableBit.mjDSBL_REFSAFE)  # see CONTACT_STEPS_PER_TIME_CONSTANT
     robot = config.robot
     spec.actuator("lift").forcerange = [-robot.lift_torque_limit_nm, robot.lift_torque_limit_nm]
     spec.actuator("tilt").forcerange = [-robot.tilt_torque_limit_nm, robot.tilt_torque_limit_nm]
@@ -69,7 +76,7 @@ def build_spec(config: ScoopConfig) -> mujoco.MjSpec:
     pile = config.pile
     for i, centre in enumerate(pile_layout(pile)):
         body = spec.worldbody.add_body(name=f"particle_{i:03d}", pos=centre.tolist())
-        body.add_freejoint(name=f"particle_{i:03d}")
+        add_particle_joints(body, f"particle_{i:03d}", centre, pile.rolling)
         body.add_geom(name=f"particle_{i:03d}", type=mujoco.mjtGeom.mjGEOM_SPHERE,
                       size=[pile.radius_m, 0, 0], mass=pile.particle_mass_kg,
                       contype=PARTICLE_CONTYPE, conaffinity=PARTICLE_CONAFFINITY, condim=3,
@@ -80,17 +87,34 @@ def build_spec(config: ScoopConfig) -> mujoco.MjSpec:
     return spec
 
 
-def compile_scene(config: ScoopConfig) -> mujoco.MjModel:
-    """Compile the scene and give each particle's spin its damping.
+def add_particle_joints(body: mujoco.MjsBody, name: str, centre: np.ndarray, rolling: bool) -> None:
+    """Give a particle its degrees of freedom; ``qpos`` then holds its world position first.
 
-    Rolling resistance: gravel is angular and does not roll like marbles. MuJoCo's rolling friction
-    (condim 6) would triple the contact rows; damping the particles' three rotational degrees of
-    freedom gives the same resistance at no cost per contact (the integrator treats it implicitly).
+    Rolling: a free joint (position, then orientation quaternion). Not rolling: three slide joints
+    along world x, y, z (named ``name``, ``name_y``, ``name_z``) whose ``ref`` is the body's
+    position, so the three ``qpos`` entries are the particle's world position.
+    """
+    if rolling:
+        body.add_freejoint(name=name)
+        return
+    for k, (suffix, axis) in enumerate((("", [1, 0, 0]), ("_y", [0, 1, 0]), ("_z", [0, 0, 1]))):
+        body.add_joint(name=name + suffix, type=mujoco.mjtJoint.mjJNT_SLIDE, axis=axis, ref=float(centre[k]))
+
+
+def compile_scene(config: ScoopConfig) -> mujoco.MjModel:
+    """Compile the scene; rolling particles get their spin damped.
+
+    Gravel is angular and does not roll like marbles. By default the particles do not turn at all
+    (slide joints: three degrees of freedom instead of six, which makes the contact solve about a
+    fifth cheaper). With ``pile.rolling`` they may; MuJoCo's rolling friction (condim 6) would then
+    triple the contact rows, so damping the three rotational degrees of freedom gives the
+    resistance instead, at no cost per contact (the integrator treats it implicitly).
     """
     model = build_spec(config).compile()
-    for i in range(config.pile.n_particles):
-        dof = model.jnt_dofadr[model.joint(f"particle_{i:03d}").id]
-        model.dof_damping[dof + 3:dof + 6] = config.pile.rolling_damping_nms
+    if config.pile.rolling:
+        for i in range(config.pile.n_particles):
+            dof = model.jnt_dofadr[model.joint(f"particle_{i:03d}").id]
+            model.dof_damping[dof + 3:dof + 6] = config.pile.rolling_damping_nms
     return model
 
 
@@ -173,8 +197,8 @@ class ScoopSim:
         d.act[self._lift_act_state] = lift
         d.act[self._tilt_act_state] = tilt
         centres = pile_layout(self.pile_of_variant(variant), np.random.default_rng([variant, 20211]))
-        for adr, centre in zip(self._particle_qpos, centres):
-            d.qpos[adr:adr + 7] = [*centre, 1, 0, 0, 0]
+        for index, centre in enumerate(centres):
+            self._place_particle(index, centre)
         mujoco.mj_forward(m, d)
         step = m.opt.timestep
         mujoco.mj_step(m, d, nstep=int(round(cfg.pile.settle_s / step)))
@@ -291,9 +315,16 @@ class ScoopSim:
 
     def set_particle(self, index: int, position: np.ndarray) -> None:
         """Teleport one particle (at rest) to a world position; for scenes with sleeping disabled."""
-        adr = self._particle_qpos[index]
-        self.data.qpos[adr:adr + 7] = [*position, 1, 0, 0, 0]
+        self._place_particle(index, position)
         body = self._particle_bodies[index]
-        dof = self.model.jnt_dofadr[self.model.body_jntadr[body]]
-        self.data.qvel[dof:dof + 6] = 0.0
+        dof = self.model.body_dofadr[body]
+        self.data.qvel[dof:dof + self.model.body_dofnum[body]] = 0.0
+
+    def _place_particle(self, index: int, position: np.ndarray) -> None:
+        """Write a particle's world position (and, if it rolls, the identity orientation) into ``qpos``."""
+        adr = self._particle_qpos[index]
+        if self.config.pile.rolling:
+            self.data.qpos[adr:adr + 7] = [*position, 1, 0, 0, 0]
+        else:
+            self.data.qpos[adr:adr + 3] = position
 
