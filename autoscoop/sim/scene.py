@@ -42,15 +42,9 @@ SLEEP_TOLERANCE = 0.03
 """Bodies slower than this (MuJoCo's sleep_tolerance) fall asleep; a resting pile then costs almost nothing."""
 
 
-CONTACT_STEPS_PER_TIME_CONSTANT = 5.0 / 3.0
-"""Contact time constant in physics steps, at least. MuJoCo's own floor is 2 (its ``refsafe``
-flag, turned off here): at the default 0.025 s step, 5/3 keeps the stiffness the contacts had at
-the earlier 1/48 s step (0.0417 s); the implicit integrator is stable there, 4/3 is not."""
-
-
 def contact_time_constant_s(timestep_s: float) -> float:
-    """Contact stiffness time constant: MuJoCo's default 0.02 s, never below 5/3 physics steps."""
-    return max(0.02, CONTACT_STEPS_PER_TIME_CONSTANT * timestep_s)
+    """Contact stiffness time constant: MuJoCo's default 0.02 s, never below two physics steps."""
+    return max(0.02, 2.0 * timestep_s)
 
 
 def build_spec(config: ScoopConfig) -> mujoco.MjSpec:
@@ -59,7 +53,6 @@ def build_spec(config: ScoopConfig) -> mujoco.MjSpec:
     spec.option.timestep = config.env.timestep_s
     spec.option.enableflags |= int(mujoco.mjtEnableBit.mjENBL_SLEEP)
     spec.option.sleep_tolerance = SLEEP_TOLERANCE
-    spec.option.disableflags |= int(mujoco.mjtDisableBit.mjDSBL_REFSAFE)  # see CONTACT_STEPS_PER_TIME_CONSTANT
     robot = config.robot
     spec.actuator("lift").forcerange = [-robot.lift_torque_limit_nm, robot.lift_torque_limit_nm]
     spec.actuator("tilt").forcerange = [-robot.tilt_torque_limit_nm, robot.tilt_torque_limit_nm]
