@@ -98,9 +98,10 @@ class PileConfig(_Section):
     radius_m: float = _field(0.034, "m", "particle radius", 0.01, 0.08)
     particle_mass_kg: float = _field(0.3, "kg", "mass of one particle", 0.01, 5.0)
     friction: float = _field(1.0, "-", "sliding friction of particle contacts", 0.0, 2.0)
-    rolling: bool = _field(False, "-", "particles may roll (free joints, spin damped by rolling_damping_nms); false: "
-                           "they slide without turning (three slide joints each), the limit of angular gravel, "
-                           "a fifth cheaper to simulate", choices=(False, True))
+    rolling: bool = _field(True, "-", "particles may roll (free joints, spin damped by rolling_damping_nms); "
+                           "false: they slide without turning (three slide joints each): a 1.3-1.8x faster "
+                           "scene, but a stiffer pile (scripted fill 0.63 instead of 0.71) that the shipped "
+                           "policy was not trained on", choices=(False, True))
     rolling_damping_nms: float = _field(0.5, "N*m*s/rad", "damping of particle spin when pile.rolling: the rolling "
                                         "resistance of angular gravel", 0.0, 10.0)
     across: int = _field(8, "-", "particles per row across the pile (y)", 1, 20)

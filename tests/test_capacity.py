@@ -15,9 +15,9 @@ def test_bucket_holds_about_the_rated_load():
 
 
 def test_capacity_stops_when_drops_add_nothing():
-    counts = fill_until_overflow(ScoopConfig(), max_particles=40, patience=4, seed=0)
-    assert len(counts) < 40  # it stopped early: four drops in a row added nothing
-    assert counts[-5] >= max(counts[-4:])
+    counts = fill_until_overflow(ScoopConfig(), max_particles=40, patience=3, seed=0)
+    assert len(counts) < 40  # it stopped early: three drops in a row added nothing
+    assert counts[-4] >= max(counts[-3:])
     assert capacity(counts) > 0.7 * RATED_PARTICLES
 
 

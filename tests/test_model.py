@@ -76,3 +76,21 @@ def test_bucket_side_plates_bound_the_counted_width():
         local_y = (world - data.xpos[bucket]) @ data.xmat[bucket].reshape(3, 3)[:, 1]
         inner_faces.append(np.abs(local_y).min())
     assert inner_faces == pytest.approx([kinematics.BUCKET_INNER_HALF_WIDTH_M] * 2, abs=1e-4)
+
+
+@pytest.mark.parametrize("rolling, dofs", [(False, 3), (True, 6)])
+def test_particles_slide_without_turning_unless_rolling(rolling, dofs):
+    config = ScoopConfig().with_overrides({"pile.rolling": rolling, "pile.n_particles": 24, "pile.variants": 1})
+    sim = ScoopSim(config)
+    bodies = sim._particle_bodies
+    assert (sim.model.body_dofnum[bodies] == dofs).all()
+    target = np.array([1.5, 2.0, 0.5])
+    sim.set_particle(0, target)
+    mujoco.mj_kinematics(sim.model, sim.data)
+    assert sim.particle_positions[0] == pytest.approx(target)  # qpos holds the world position either way
+    sim.reset(np.random.default_rng(0))
+    sim.command(0.1, 0.0, 0.0)
+    sim.step(144)  # 3 s: the bucket pushes into the pile
+    orientations = sim.data.xquat[bodies]
+    turned = np.abs(np.abs(orientations[:, 0]) - 1.0).max()
+    assert (turned == 0.0) if not rolling else (turned > 1e-6)

@@ -97,11 +97,12 @@ def add_particle_joints(body: mujoco.MjsBody, name: str, centre: np.ndarray, rol
 def compile_scene(config: ScoopConfig) -> mujoco.MjModel:
     """Compile the scene; rolling particles get their spin damped.
 
-    Gravel is angular and does not roll like marbles. By default the particles do not turn at all
-    (slide joints: three degrees of freedom instead of six, which makes the contact solve about a
-    fifth cheaper). With ``pile.rolling`` they may; MuJoCo's rolling friction (condim 6) would then
-    triple the contact rows, so damping the three rotational degrees of freedom gives the
-    resistance instead, at no cost per contact (the integrator treats it implicitly).
+    Gravel is angular and does not roll like marbles. MuJoCo's rolling friction (condim 6) would
+    triple the contact rows; damping the particles' three rotational degrees of freedom gives the
+    resistance at no cost per contact (the integrator treats it implicitly). With
+    ``pile.rolling: false`` the particles cannot turn at all (three slide joints each): the limit of
+    that resistance, and a faster scene (fewer degrees of freedom in the contact solve), but not the
+    one the shipped policy and the scripted controller are tuned for.
     """
     model = build_spec(config).compile()
     if config.pile.rolling:
