@@ -99,7 +99,7 @@ class PileConfig(_Section):
     particle_mass_kg: float = _field(0.3, "kg", "mass of one particle", 0.01, 5.0)
     friction: float = _field(1.0, "-", "sliding friction of particle contacts", 0.0, 2.0)
     rolling: bool = _field(True, "-", "particles may roll (free joints, spin damped by rolling_damping_nms); "
-                           "false: they slide without turning (three slide joints each): a 1.3-1.8x faster "
+                           "false: they slide without turning (three slide joints each): a 1.3-1.6x faster "
                            "scene, but a stiffer pile (scripted fill 0.63 instead of 0.71) that the shipped "
                            "policy was not trained on", choices=(False, True))
     rolling_damping_nms: float = _field(0.5, "N*m*s/rad", "damping of particle spin when pile.rolling: the rolling "
