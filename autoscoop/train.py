@@ -42,6 +42,7 @@ from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv
 from tqdm import tqdm
 
 from autoscoop import __version__
+from autoscoop.agents.demonstrations import add_scripted_demonstrations
 from autoscoop.agents.policy_files import PolicyFileError, actor_from_sb3, save_actor, sha256_of
 from autoscoop.config import ScoopConfig, from_dict, save_yaml
 from autoscoop.envs.scoop import make_scoop_env
@@ -81,6 +82,8 @@ class TrainArgs:
     """allow ``init_from`` to name a run whose ``run.json`` does not vouch for its ``policy.zip`` (pickle)."""
     hyper: dict[str, str] = field(default_factory=dict)
     """overrides of the algorithm's YAML, ``{"noise.sigma_start": "0.05"}`` (see :func:`with_hyper_overrides`)."""
+    demo_episodes: int = 0
+    """scripted scoops put in the replay buffer before learning (off-policy algorithms only)."""
 
 
 def load_hyperparams(algo: str) -> dict[str, Any]:
@@ -382,6 +385,8 @@ def _default_run_dir(args: TrainArgs) -> Path:
 
 def train(args: TrainArgs) -> Path:
     """Train from scratch into a new run directory; return it."""
+    if args.demo_episodes and ALGORITHMS[args.algo] is PPO:
+        raise ValueError("--demo-episodes needs an off-policy algorithm (ddpg, td3, sac); ppo has no replay buffer")
     spec = with_hyper_overrides(load_hyperparams(args.algo), args.hyper)
     config = ScoopConfig().with_overrides({**(spec.get("env") or {}), **args.overrides})
     init_zip = init_model_zip(args.init_from, args.algo, args.trust) if args.init_from else None
@@ -394,7 +399,8 @@ def train(args: TrainArgs) -> Path:
     info = {"algo": args.algo, "seed": args.seed, "episodes": args.episodes, "n_envs": args.n_envs,
             "autoscoop_version": __version__, "command": " ".join(sys.argv), "torch": torch.__version__,
             "checkpoint_every": args.checkpoint_every, "eval_every": args.eval_every,
-            "eval_episodes": args.eval_episodes, "status": "running", "wall_s": 0.0}
+            "eval_episodes": args.eval_episodes, "demo_episodes": args.demo_episodes,
+            "status": "running", "wall_s": 0.0}
     if init_zip is not None:
         info.update(init_from=str(init_zip.resolve()), init_sha256=sha256_of(init_zip))
     _write_run_json(run_dir, info)
@@ -461,6 +467,9 @@ def _run(run_dir: Path, config: ScoopConfig, spec: dict[str, Any], info: dict[st
                          policy_kwargs=policy_kwargs or None, verbose=0, **kwargs)
         if info.get("init_from"):
             _load_init_weights(model, Path(info["init_from"]), info["init_sha256"])
+        if info.get("demo_episodes"):
+            added = add_scripted_demonstrations(model.replay_buffer, config, info["demo_episodes"])
+            print(f"replay buffer: {added} transitions of {info['demo_episodes']} scripted scoops", file=sys.stderr)
     else:
         model.tensorboard_log = str(run_dir / "tb")
     started = time.time()

@@ -211,3 +211,30 @@ def test_ppo_trains_and_its_run_directory_loads(tmp_path):
     assert (out / "policy.zip").is_file() and not (out / "policy.safetensors").exists()
     policy = load_policy(str(out), ScoopConfig())
     assert policy.act(np.zeros(12, dtype=np.float32)).shape == (3,)
+
+
+def test_scripted_demonstrations_fill_the_replay_buffer():
+    from stable_baselines3.common.buffers import ReplayBuffer
+
+    from autoscoop.agents.demonstrations import add_scripted_demonstrations
+    from autoscoop.envs.scoop import make_scoop_env
+
+    config = ScoopConfig().with_overrides({"pile.variants": 1})
+    env = make_scoop_env(config)
+    buffer = ReplayBuffer(200, env.observation_space, env.action_space, n_envs=2)
+    added = add_scripted_demonstrations(buffer, config, episodes=2)
+    assert added == buffer.pos * 2 and added >= 20  # two scoops of a few seconds, stored two at a time
+    stored = buffer.actions[:buffer.pos].reshape(-1, 3)
+    assert np.abs(stored).max() <= 1.0 and np.abs(stored).sum() > 0
+    assert buffer.dones[:buffer.pos].sum() >= 1  # the scripted scoop reached the terminal point at least once
+    rewards = buffer.rewards[:buffer.pos]
+    assert np.isfinite(rewards).all() and rewards.max() > 1.0  # the mass bonus is in there
+
+
+def test_demonstrations_need_an_off_policy_algorithm(tmp_path):
+    from autoscoop import train as train_mod
+
+    with pytest.raises(ValueError, match="off-policy"):
+        train_mod.train(train_mod.TrainArgs(algo="ppo", episodes=2, out=tmp_path / "run", progress=False,
+                                            demo_episodes=1))
+    assert not (tmp_path / "run").exists()
