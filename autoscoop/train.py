@@ -82,8 +82,9 @@ class TrainArgs:
     """allow ``init_from`` to name a run whose ``run.json`` does not vouch for its ``policy.zip`` (pickle)."""
     hyper: dict[str, str] = field(default_factory=dict)
     """overrides of the algorithm's YAML, ``{"noise.sigma_start": "0.05"}`` (see :func:`with_hyper_overrides`)."""
-    demo_episodes: int = 0
-    """scripted scoops put in the replay buffer before learning (off-policy algorithms only)."""
+    demo_episodes: int | None = None
+    """scripted scoops put in the replay buffer before learning (off-policy algorithms only);
+    ``None``: the algorithm's YAML says (``demo_episodes``, 0 if absent)."""
 
 
 def load_hyperparams(algo: str) -> dict[str, Any]:
@@ -385,9 +386,10 @@ def _default_run_dir(args: TrainArgs) -> Path:
 
 def train(args: TrainArgs) -> Path:
     """Train from scratch into a new run directory; return it."""
-    if args.demo_episodes and ALGORITHMS[args.algo] is PPO:
-        raise ValueError("--demo-episodes needs an off-policy algorithm (ddpg, td3, sac); ppo has no replay buffer")
     spec = with_hyper_overrides(load_hyperparams(args.algo), args.hyper)
+    demos = int(spec.get("demo_episodes", 0)) if args.demo_episodes is None else args.demo_episodes
+    if demos and ALGORITHMS[args.algo] is PPO:
+        raise ValueError("--demo-episodes needs an off-policy algorithm (ddpg, td3, sac); ppo has no replay buffer")
     config = ScoopConfig().with_overrides({**(spec.get("env") or {}), **args.overrides})
     init_zip = init_model_zip(args.init_from, args.algo, args.trust) if args.init_from else None
     run_dir = Path(args.out) if args.out else _default_run_dir(args)
@@ -399,7 +401,7 @@ def train(args: TrainArgs) -> Path:
     info = {"algo": args.algo, "seed": args.seed, "episodes": args.episodes, "n_envs": args.n_envs,
             "autoscoop_version": __version__, "command": " ".join(sys.argv), "torch": torch.__version__,
             "checkpoint_every": args.checkpoint_every, "eval_every": args.eval_every,
-            "eval_episodes": args.eval_episodes, "demo_episodes": args.demo_episodes,
+            "eval_episodes": args.eval_episodes, "demo_episodes": demos,
             "status": "running", "wall_s": 0.0}
     if init_zip is not None:
         info.update(init_from=str(init_zip.resolve()), init_sha256=sha256_of(init_zip))

@@ -29,9 +29,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument("--hyper", action="append", default=[], metavar="SECTION.KEY=VALUE",
                         help="override a setting of the algorithm's YAML, e.g. hyperparams.learning_rate=3e-4 "
                              "or noise.sigma_start=0.05 (repeatable)")
-    parser.add_argument("--demo-episodes", type=int, default=0, metavar="N",
+    parser.add_argument("--demo-episodes", type=int, metavar="N",
                         help="put N scripted (heuristic) scoops in the replay buffer before learning "
-                             "(off-policy algorithms; default 0, as in the paper)")
+                             "(off-policy algorithms; default: the algorithm's YAML, 20 for ddpg)")
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
     add_config_args(parser)
     parser.set_defaults(func=run)
@@ -47,7 +47,7 @@ def run(args: argparse.Namespace) -> int:
             raise ValueError("--episodes, --n-envs, --checkpoint-every and --eval-episodes must be at least 1")
         if args.eval_every < 0:
             raise ValueError("--eval-every must be 0 (off) or more")
-        if args.demo_episodes < 0:
+        if args.demo_episodes is not None and args.demo_episodes < 0:
             raise ValueError("--demo-episodes must be 0 (none) or more")
         # only the keys the file sets: its defaults must not undo the algorithm's own (reward.c_w)
         flat = overrides_from_yaml(args.config) if args.config else {}
