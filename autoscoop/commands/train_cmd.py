@@ -31,7 +31,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                              "or noise.sigma_start=0.05 (repeatable)")
     parser.add_argument("--demo-episodes", type=int, metavar="N",
                         help="put N scripted (heuristic) scoops in the replay buffer before learning "
-                             "(off-policy algorithms; default: the algorithm's YAML, 20 for ddpg)")
+                             "(off-policy algorithms; default: the algorithm's YAML, demo_episodes, 0 when it has none)")
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
     add_config_args(parser)
     parser.set_defaults(func=run)
