@@ -5,9 +5,9 @@ config overrides (``--set pile.rolling=false``), MuJoCo option edits applied aft
 (``--option iterations=6``, ``--option solver=CG``, ``--option disable=WARMSTART``) and, if given, a
 contact time constant that replaces max(0.02, 2 x step) (``--contact-time-constant 0.0417``; MuJoCo's
 ``refsafe`` floor of two steps is then turned off). Prints the fill factor (mean +- std), success,
-cycle time and physics errors, and physics steps per second of wall time on one core (noisy on a
-shared machine). With ``--instructions`` it runs itself twice under ``valgrind --tool=callgrind``
-(settling the pile variants only, then settling plus the episodes) and reports the instructions
+cycle time and physics errors (wall-clock speed: ``autoscoop bench --set ...``). With
+``--instructions`` it runs itself twice under ``valgrind --tool=callgrind`` (settling the pile
+variants only, then settling plus the episodes) and reports the instructions
 spent in ``mj_step`` per simulated second of the episodes: a cost that does not vary with the
 machine's speed.
 
@@ -25,7 +25,6 @@ import re
 import subprocess
 import sys
 import tempfile
-import time
 
 import numpy as np
 
@@ -68,22 +67,10 @@ def run(args: argparse.Namespace) -> dict:
     if args.contact_time_constant:
         sim.model.opt.disableflags |= int(mujoco.mjtDisableBit.mjDSBL_REFSAFE)
     controller = heuristic_for(config)
-    if hasattr(os, "sched_setaffinity"):
-        os.sched_setaffinity(0, {min(os.sched_getaffinity(0))})
     for i in range(args.episodes):  # settle the variants these seeds use
         env.reset(seed=args.seed + i)
     if os.environ.get("PHYSICS_VARIANTS_SETTLE_ONLY"):
         return {}
-    step, physics_s, physics_steps = sim.step, 0.0, 0
-
-    def timed(n_steps: int) -> None:
-        nonlocal physics_s, physics_steps
-        start = time.perf_counter()
-        step(n_steps)
-        physics_s += time.perf_counter() - start
-        physics_steps += n_steps
-
-    sim.step = timed
     fills, successes, cycles, errors, simulated = [], [], [], 0, 0.0
     for i in range(args.episodes):
         obs, _ = env.reset(seed=args.seed + i)
@@ -102,7 +89,7 @@ def run(args: argparse.Namespace) -> dict:
             "contact_time_constant_s": args.contact_time_constant,
             "fill_factor_mean": float(np.mean(fills)), "fill_factor_std": float(np.std(fills)),
             "success_rate": float(np.mean(successes)), "cycle_time_mean": float(np.mean(cycles)) if cycles else None,
-            "physics_errors": errors, "simulated_s": simulated, "physics_steps_per_s": physics_steps / physics_s}
+            "physics_errors": errors, "simulated_s": simulated}
 
 
 def count_instructions(argv: list[str]) -> dict:
@@ -118,7 +105,6 @@ def count_instructions(argv: list[str]) -> dict:
         counts.append(int(re.search(r"Collected : (\d+)", done.stderr).group(1)))
         lines = [line for line in done.stdout.splitlines() if line.startswith("{")]
         result = json.loads(lines[-1]) if lines else result
-    result.pop("physics_steps_per_s")  # meaningless under valgrind
     result["mj_step_instructions_per_simulated_s"] = (counts[1] - counts[0]) / result["simulated_s"]
     return result
 
