@@ -16,6 +16,7 @@ import statistics
 import time
 from typing import Any
 
+import mujoco
 from tqdm import tqdm
 
 from autoscoop import __version__
@@ -36,6 +37,21 @@ def pin_to_one_core() -> tuple[str, set[int] | None]:
         os.sched_setaffinity(0, {core})
         return f"pinned to core {core}", previous
     return "not pinned (no sched_setaffinity on this OS)", None
+
+
+def cpu_description() -> str:
+    """The processor's model name (from ``/proc/cpuinfo`` on Linux), else what ``platform`` knows.
+
+    Speeds from different machines are only comparable when it is known which machine gave them.
+    """
+    try:
+        with open("/proc/cpuinfo", encoding="utf-8") as cpuinfo:
+            for line in cpuinfo:
+                if line.startswith("model name"):
+                    return line.partition(":")[2].strip()
+    except OSError:
+        pass
+    return platform.processor() or platform.machine()
 
 
 def measure_once(config: ScoopConfig, episodes: int, seed: int, env: Any = None) -> dict[str, float]:
@@ -99,7 +115,10 @@ def run_bench(config: ScoopConfig | None = None, episodes: int = 10, repeats: in
         "episodes_per_repeat": episodes,
         "timestep_s": config.env.timestep_s,
         "n_particles": config.pile.n_particles,
-        "cpu": platform.processor() or platform.machine(),
+        "cpu": cpu_description(),
+        "cpu_count": os.cpu_count(),
+        "mujoco_version": mujoco.__version__,
+        "python_version": platform.python_version(),
         "cores": pinned,
         "autoscoop_version": __version__,
         "config": config.to_dict(),

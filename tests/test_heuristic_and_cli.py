@@ -47,6 +47,10 @@ def test_bench_command_reports_the_three_speeds(tmp_path):
     result = json.loads(out.read_text())
     assert result["physics_steps_per_s"] > 0 and result["env_steps_per_s"] > 0 and result["realtime_factor"] > 0
     assert os.sched_getaffinity(0) == cores  # the pin to one core is undone
+    assert result["cpu"] and result["cpu_count"] >= 1  # which machine gave the figures
+    import mujoco
+
+    assert result["mujoco_version"] == mujoco.__version__
 
 
 def test_the_heuristic_scales_its_speed_with_the_configs_limit():

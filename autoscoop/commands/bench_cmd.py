@@ -36,6 +36,7 @@ def run(args: argparse.Namespace) -> int:
     repeats = ", ".join(f"{run['realtime_factor']:.1f}" for run in result["repeats"])
     print(f"real-time factor  {result['realtime_factor']:10.1f}   (median of {len(result['repeats'])}: "
           f"{repeats}; {result['cores']})")
+    print(f"machine           {result['cpu']}, {result['cpu_count']} cores, MuJoCo {result['mujoco_version']}")
     if args.json:
         write_json(args.json, result)
         print(f"wrote {args.json}")
