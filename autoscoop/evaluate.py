@@ -20,6 +20,7 @@ from autoscoop.agents.base import Policy
 from autoscoop.config import ScoopConfig
 from autoscoop.envs.scoop import make_scoop_env
 from autoscoop.recorder import EpisodeRecorder, record_name
+from autoscoop.statistics import outcome_statistics
 
 
 @dataclass(frozen=True)
@@ -90,27 +91,11 @@ def evaluate(policy: Policy, config: ScoopConfig, episodes: int, seed: int = 0,
     return results
 
 
-def _mean_std(values: list[float]) -> tuple[float, float]:
-    if not values:
-        return math.nan, math.nan
-    return float(np.mean(values)), float(np.std(values))
-
-
 def summarize(results: list[EpisodeResult], config: ScoopConfig, policy_name: str) -> dict[str, Any]:
     """Summary statistics (mean and standard deviation over episodes) with the config used."""
-    fill_mean, fill_std = _mean_std([r.fill_factor for r in results])
-    mass_mean, mass_std = _mean_std([r.mass_kg for r in results])
-    cycle_mean, cycle_std = _mean_std([r.cycle_time_s for r in results if r.success])
-    spill_mean, spill_std = _mean_std([float(r.spilled) for r in results])
     return {
         "policy": policy_name,
-        "episodes": len(results),
-        "fill_factor_mean": fill_mean, "fill_factor_std": fill_std,
-        "mass_kg_mean": mass_mean, "mass_kg_std": mass_std,
-        "cycle_time_mean": cycle_mean, "cycle_time_std": cycle_std,
-        "success_rate": float(np.mean([r.success for r in results])) if results else math.nan,
-        "spillage_mean": spill_mean, "spillage_std": spill_std,
-        "physics_errors": int(sum(r.physics_error for r in results)),
+        **outcome_statistics(asdict(r) for r in results),
         "pile": {"angle_deg": config.pile.angle_deg, "n_particles": config.pile.n_particles},
         "autoscoop_version": __version__,
         "config": config.to_dict(),

@@ -27,10 +27,14 @@ commanded target by ``action * (upper limit - lower limit)``, clipped to the lim
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from autoscoop import kinematics
+
+if TYPE_CHECKING:
+    from autoscoop.config import RobotConfig
 
 STATE_NAMES = ("w", "tip_x", "tip_z", "joint_x", "joint_z", "d_pile", "v", "lift", "tilt", "dv", "dlift", "dtilt")
 STATE_UNITS = ("-", "m", "m", "m", "m", "m", "m/s", "rad", "rad", "m/s", "rad", "rad")
@@ -94,6 +98,11 @@ class CommandLimits:
     max_speed_mps: float = 0.1
     lift_range_rad: tuple[float, float] = kinematics.LIFT_RANGE_RAD
     tilt_range_rad: tuple[float, float] = kinematics.TILT_RANGE_RAD
+
+    @classmethod
+    def for_robot(cls, robot: RobotConfig) -> CommandLimits:
+        """The limits of a configured robot: its drive speed limit, the arm's joint ranges."""
+        return cls(max_speed_mps=robot.max_speed_mps)
 
     @property
     def low(self) -> np.ndarray:

@@ -54,16 +54,14 @@ def test_filming_an_episode_does_not_change_it(tmp_path):
     np.testing.assert_allclose(np.diff(capture.times_s), 1.0 / capture.fps, atol=1e-9)
 
 
-def test_the_demo_falls_back_to_the_heuristic_only_for_a_missing_default(capsys):
-    from autoscoop.agents.loading import PolicyError
-    from autoscoop.commands.demo_cmd import load_demo_policy
+def test_a_missing_shipped_policy_stops_the_demo_instead_of_showing_another(monkeypatch, tmp_path, capsys):
+    from autoscoop.agents import loading
+    from autoscoop.cli import main
 
-    policy, name = load_demo_policy("heuristic", ScoopConfig())
-    assert name == "heuristic" and policy.name == "heuristic"
-    with pytest.raises(PolicyError):
-        load_demo_policy("no/such/policy.file", ScoopConfig())
-    _, name = load_demo_policy("default", ScoopConfig())
-    assert name in ("default", "heuristic")
+    monkeypatch.setattr(loading, "default_policy_path", lambda: tmp_path / "default.safetensors")
+    assert main(["demo", "--episodes", "1", "--no-video", "--out", str(tmp_path / "demo")]) == 2
+    assert "shipped policy is missing" in capsys.readouterr().err
+    assert not (tmp_path / "demo").exists()
 
 
 def test_headless_machines_get_an_off_screen_backend(monkeypatch):

@@ -78,6 +78,22 @@ def test_bucket_side_plates_bound_the_counted_width():
     assert inner_faces == pytest.approx([kinematics.BUCKET_INNER_HALF_WIDTH_M] * 2, abs=1e-4)
 
 
+def test_bucket_plates_in_the_model_are_the_generators_output():
+    """tools/bucket_geometry.py with its defaults (the outline of autoscoop.kinematics) prints loader.xml's plates."""
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parents[1]
+    printed = subprocess.run([sys.executable, str(root / "tools" / "bucket_geometry.py")], check=True,
+                             capture_output=True, text=True).stdout.splitlines()
+    plates = [line for line in printed if line.startswith("<")]
+    loader = Path(scene_path()).with_name("loader.xml").read_text()
+    assert len(plates) == 4
+    for line in plates:
+        assert line in loader, line
+
+
 @pytest.mark.parametrize("rolling, dofs", [(False, 3), (True, 6)])
 def test_particles_slide_without_turning_unless_rolling(rolling, dofs):
     config = ScoopConfig().with_overrides({"pile.rolling": rolling, "pile.n_particles": 24, "pile.variants": 1})

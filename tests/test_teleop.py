@@ -105,7 +105,7 @@ class FakeViewer:
 def test_a_session_records_the_episode_it_was_driven_through(tmp_path):
     config = ScoopConfig().with_overrides({"env.max_episode_s": 1.0, "pile.variants": 1})
     env = EpisodeRecorder(make_scoop_env(config), {"policy": "manual", "source": "teleop"})
-    keys = TeleopKeys(CommandLimits(max_speed_mps=config.robot.max_speed_mps))
+    keys = TeleopKeys(CommandLimits.for_robot(config.robot))
     viewer = FakeViewer(keys, {0: [KEY_UP, KEY_UP, KEY_UP, KEY_UP], 3: [KEY_PAGE_UP]})
     messages = []
     saved = run_session(env, keys, viewer, SessionOptions(out_dir=tmp_path, episodes=1, speed=4.0),

@@ -3,10 +3,12 @@
 The bucket's inner outline is the paper's quadrilateral (SPEC.md): tilt joint J, point A 0.124 m
 from J at +46 deg, cutting edge (tip) 0.215 m from J at 0 deg, point B 0.10 m from J at -41 deg,
 angles measured from the J->tip line. Frame: the bucket body frame, x along J->tip, z toward A,
-y across the bucket. The shell is B->J->A (back) and B->tip (floor); A->tip is the mouth. Each
+y across the bucket. The outline and the inner width are read from ``autoscoop.kinematics`` (the
+same numbers that count particles as inside), so the defaults print the plates in ``loader.xml``
+(a test checks that). The shell is B->J->A (back) and B->tip (floor); A->tip is the mouth. Each
 plate lies outside the outline with its inner face on it, so a particle's centre inside the
 outline is inside the bucket. The back plates are boxes; the floor is a convex wedge that tapers
-to a sharp cutting edge (a blunt 2 cm edge pushes the pile instead of slicing under it). Run: ``python tools/bucket_geometry.py --width 0.44``.
+to a sharp cutting edge (a blunt 2 cm edge pushes the pile instead of slicing under it). Run: ``python tools/bucket_geometry.py``.
 """
 
 import argparse
@@ -14,10 +16,11 @@ import math
 
 import numpy as np
 
-TIP = np.array([0.215, 0.0])
-A = 0.124 * np.array([math.cos(math.radians(46)), math.sin(math.radians(46))])
-B = 0.10 * np.array([math.cos(math.radians(-41)), math.sin(math.radians(-41))])
-J = np.zeros(2)
+from autoscoop.kinematics import BUCKET_INNER_HALF_WIDTH_M, BUCKET_INSIDE_POLYGON_M
+
+J, A, TIP, B = BUCKET_INSIDE_POLYGON_M
+PLATE_THICKNESS_M = 0.02
+"""Thickness of the bucket's plates (2 cm, so a falling particle cannot tunnel through at 1/48 s), m."""
 CENTROID = (J + A + TIP + B) / 4
 
 
@@ -47,9 +50,10 @@ def floor_wedge(thickness: float, half_width: float, edge_thickness: float = 0.0
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser()
-    parser.add_argument("--width", type=float, default=0.44, help="inner width across the bucket, m")
-    parser.add_argument("--thickness", type=float, default=0.008, help="plate thickness, m")
+    parser = argparse.ArgumentParser(description=__doc__)
+    parser.add_argument("--width", type=float, default=2 * BUCKET_INNER_HALF_WIDTH_M,
+                        help="inner width across the bucket, m (default: autoscoop.kinematics)")
+    parser.add_argument("--thickness", type=float, default=PLATE_THICKNESS_M, help="plate thickness, m")
     args = parser.parse_args()
     hw, t = args.width / 2, args.thickness
     print(floor_wedge(t, hw + t))

@@ -24,7 +24,7 @@ def heuristic_for(config: ScoopConfig) -> HeuristicScooper:
     return HeuristicScooper(HeuristicParams(
         terminal_dx_m=config.reward.terminal_dx_m, terminal_z_m=config.reward.terminal_z_m,
         control_period_s=config.env.control_period_s,
-        limits=CommandLimits(max_speed_mps=config.robot.max_speed_mps)))
+        limits=CommandLimits.for_robot(config.robot)))
 
 
 def default_policy_path() -> Path:

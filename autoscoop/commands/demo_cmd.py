@@ -13,7 +13,7 @@ import time
 from pathlib import Path
 
 from autoscoop.agents.base import Policy
-from autoscoop.agents.loading import PolicyError, load_policy
+from autoscoop.agents.loading import load_policy
 from autoscoop.commands import add_config_args, config_from_args, write_json
 from autoscoop.config import ScoopConfig
 from autoscoop.evaluate import evaluate, format_table, summarize
@@ -34,18 +34,6 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     parser.set_defaults(func=run)
 
 
-def load_demo_policy(spec: str, config: ScoopConfig) -> tuple[Policy, str]:
-    """The policy to show, and its name as given; falls back to the heuristic while ``default`` is missing."""
-    try:
-        return load_policy(spec, config), spec
-    except PolicyError as error:
-        if spec != "default":
-            raise
-        # Fallback until the shipped policy lands in autoscoop.agents.loading; delete it then.
-        print(f"note: no shipped policy yet ({error}); showing the scripted baseline 'heuristic' instead")
-        return load_policy("heuristic", config), "heuristic"
-
-
 def run(args: argparse.Namespace) -> int:
     if args.episodes < 1:
         raise SystemExit(f"--episodes must be at least 1, got {args.episodes}")
@@ -56,7 +44,7 @@ def run(args: argparse.Namespace) -> int:
 
     started = time.perf_counter()
     config = config_from_args(args)
-    policy, name = load_demo_policy(args.policy, config)
+    policy, name = load_policy(args.policy, config), args.policy
     out: Path = args.out
     records = out / "records"
     for old in records.glob("episode_*.npz"):  # a previous demo's episodes would join this report

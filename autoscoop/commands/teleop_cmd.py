@@ -47,7 +47,7 @@ def run(args: argparse.Namespace) -> int:
 
     config = config_from_args(args).with_overrides({"env.max_episode_s": args.time_limit})
     env = EpisodeRecorder(make_scoop_env(config), {"policy": "manual", "source": "teleop"})
-    keys = TeleopKeys(CommandLimits(max_speed_mps=config.robot.max_speed_mps))
+    keys = TeleopKeys(CommandLimits.for_robot(config.robot))
     print("autoscoop teleop: drive the loader into the pile, fill the bucket, lift it to the terminal point.")
     print("\n".join(f"  {key:<6} {doc}" for key, doc in help_lines()))
     sim = env.unwrapped.sim

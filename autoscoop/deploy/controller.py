@@ -155,7 +155,7 @@ class ControllerCore:
         self.policy = policy
         self.policy_name = policy_name or getattr(policy, "name", "policy")
         self.task = task or ScoopConfig()
-        self.task_limits = CommandLimits(max_speed_mps=self.task.robot.max_speed_mps)
+        self.task_limits = CommandLimits.for_robot(self.task.robot)
         self.period_s = config.control.control_period_s
         self.limiter = CommandLimiter(config.limits, self.period_s)
         inputs = SENSOR_INPUTS + payload_inputs(config.payload) + (("estop",) if config.estop.required else ())

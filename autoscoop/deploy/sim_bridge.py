@@ -106,7 +106,7 @@ class SimBridge:
         self.noise = noise or SensorNoise()
         self.robot = robot or RobotNodeConfig()
         self.rng = np.random.default_rng(seed)
-        self.limits = CommandLimits(max_speed_mps=config.robot.max_speed_mps)
+        self.limits = CommandLimits.for_robot(config.robot)
         self._span = self.limits.high - self.limits.low
         self.servo_period_s = config.env.control_period_s
         self._servo_speed = np.array([config.robot.lift_speed_radps, config.robot.tilt_speed_radps])

@@ -94,7 +94,7 @@ class ScoopEnv(gym.Env):
         self.render_mode = render_mode
         self.metadata = {**self.metadata, "render_fps": int(round(1.0 / config.env.control_period_s))}
         self.sim = ScoopSim(config)
-        self.limits = CommandLimits(max_speed_mps=config.robot.max_speed_mps)
+        self.limits = CommandLimits.for_robot(config.robot)
         self.action_space = gym.spaces.Box(-1.0, 1.0, shape=(state_mod.ACTION_SIZE,), dtype=np.float32)
         self.observation_space = gym.spaces.Box(-np.inf, np.inf, shape=(state_mod.STATE_SIZE,), dtype=np.float32)
         self._terminal_xz = np.array([config.reward.terminal_dx_m, config.reward.terminal_z_m])

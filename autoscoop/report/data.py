@@ -17,6 +17,7 @@ import numpy as np
 
 from autoscoop.phases import PhaseSpans, phase_spans
 from autoscoop.records import EpisodeRecord, load_record
+from autoscoop.statistics import outcome_statistics
 
 MANUAL = "manual"
 """The controller label of records made by hand (``autoscoop teleop``)."""
@@ -116,26 +117,9 @@ def group_episodes(episodes: Iterable[Episode]) -> dict[tuple[str, float], list[
     return dict(groups)
 
 
-def _mean_std(values: list[float]) -> tuple[float, float]:
-    if not values:
-        return math.nan, math.nan
-    return float(np.mean(values)), float(np.std(values))
-
-
 def summarize_episodes(episodes: list[Episode]) -> dict[str, float]:
     """Mean and std over episodes of mass (kg), particles, fill factor, cycle time (successes), spillage;
     the success rate; and how many episodes, physics errors and the longest time limit."""
-    outcomes = [e.outcome for e in episodes]
-    out: dict[str, float] = {"episodes": len(outcomes)}
-    for key, values in (
-        ("mass_kg", [o["mass_kg"] for o in outcomes]),
-        ("particles", [float(o["particles"]) for o in outcomes]),
-        ("fill_factor", [o["fill_factor"] for o in outcomes]),
-        ("cycle_time", [o["cycle_time_s"] for o in outcomes if o["success"] and o["cycle_time_s"] is not None]),
-        ("spillage", [float(o["spilled"]) for o in outcomes]),
-    ):
-        out[f"{key}_mean"], out[f"{key}_std"] = _mean_std(values)
-    out["success_rate"] = float(np.mean([o["success"] for o in outcomes])) if outcomes else math.nan
-    out["physics_errors"] = int(sum(o["physics_error"] for o in outcomes))
+    out = outcome_statistics(e.outcome for e in episodes)
     out["time_limit_s"] = max((float(e.meta.get("time_limit_s", math.nan)) for e in episodes), default=math.nan)
     return out

@@ -1,0 +1,47 @@
+"""Statistics over episodes, the way every report of autoscoop gives them: mean and standard deviation.
+
+One place for ``autoscoop eval``'s summary (from :class:`autoscoop.evaluate.EpisodeResult`) and for
+the reports built from episode records (their ``outcome`` metadata): both hand in mappings with the
+keys ``mass_kg``, ``particles``, ``fill_factor``, ``cycle_time_s`` (NaN or ``None`` when the
+episode did not succeed), ``success``, ``spilled`` and ``physics_error``.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any, Iterable, Mapping
+
+import numpy as np
+
+
+def mean_std(values: Iterable[float]) -> tuple[float, float]:
+    """Mean and (population) standard deviation; both NaN when there are no values."""
+    values = list(values)
+    if not values:
+        return math.nan, math.nan
+    return float(np.mean(values)), float(np.std(values))
+
+
+def outcome_statistics(outcomes: Iterable[Mapping[str, Any]]) -> dict[str, float]:
+    """Summary of episode outcomes.
+
+    Returns:
+        ``episodes``; ``{key}_mean`` and ``{key}_std`` for ``mass_kg`` (kg), ``particles``,
+        ``fill_factor`` (mass / rated load), ``cycle_time`` (s, successful episodes only) and
+        ``spillage`` (particles that left the bucket); ``success_rate`` (NaN with no episodes);
+        ``physics_errors`` (a count).
+    """
+    outcomes = list(outcomes)
+    out: dict[str, float] = {"episodes": len(outcomes)}
+    for key, values in (
+        ("fill_factor", [float(o["fill_factor"]) for o in outcomes]),
+        ("mass_kg", [float(o["mass_kg"]) for o in outcomes]),
+        ("particles", [float(o["particles"]) for o in outcomes]),
+        ("cycle_time", [float(o["cycle_time_s"]) for o in outcomes
+                        if o["success"] and o["cycle_time_s"] is not None]),
+        ("spillage", [float(o["spilled"]) for o in outcomes]),
+    ):
+        out[f"{key}_mean"], out[f"{key}_std"] = mean_std(values)
+    out["success_rate"] = float(np.mean([bool(o["success"]) for o in outcomes])) if outcomes else math.nan
+    out["physics_errors"] = int(sum(bool(o["physics_error"]) for o in outcomes))
+    return out
