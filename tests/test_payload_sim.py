@@ -127,3 +127,13 @@ def test_torque_mass_source_with_noise_is_seeded():
     first = [obs[0] for obs, _ in run_heuristic(ScoopEnv(**overrides), 3)[:8]]
     second = [obs[0] for obs, _ in run_heuristic(ScoopEnv(**overrides), 3)[:8]]
     assert first == second
+
+
+def test_the_reward_pays_for_the_counted_mass_whatever_the_state_sees():
+    env = ScoopEnv(**{"pile.variants": 1, "env.mass_source": "torque", "env.load_cell_noise_nm": 0.5})
+    obs, info = run_heuristic(env, 3)[-1]
+    assert info["success"] and info["mass_in_bucket_kg"] > 1.0
+    reward = env.config.reward
+    counted_w = np.float32(info["mass_in_bucket_kg"] / reward.rated_load_kg)
+    assert abs(obs[0] - counted_w) > 1e-3  # the state's w is the estimate, not the count
+    assert info["reward_mass"] == pytest.approx(reward.c_w * float(counted_w), rel=1e-6)

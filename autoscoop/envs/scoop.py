@@ -60,6 +60,10 @@ class ScoopEnv(gym.Env):
     else ``1 - tanh^2(d_t)``; plus ``reward.c_w * w_t`` on the step the tip comes within
     ``reward.epsilon_m`` of the terminal point (``reward.terminal_dx_m`` from the toe,
     ``reward.terminal_z_m`` high). ``info["reward_progress"] + info["reward_mass"] == reward``.
+    The reward's ``w_t`` is always the counted mass (particles inside the bucket), whatever
+    ``env.mass_source`` feeds the state: with the torque source the policy sees what the robot
+    would, while the reward still pays for what the bucket really holds (paid for the estimate,
+    a learner finds that quick, empty lifts read as load).
     ``d_end`` is measured in the arm's plane (world x and z): the terminal point marks a reach and a
     height over the pile across the bucket's width, as in the paper's planar problem. The state
     carries no lateral position, and a skid-steer pushed into a jittered pile yaws a few centimetres
@@ -137,8 +141,11 @@ class ScoopEnv(gym.Env):
             return self._last_obs.copy(), 0.0, True, False, info
 
         obs, info = self._observe()
+        # the reward's w is the counted mass, rounded as the state's w is: the same number as obs[0]
+        # with the truth source; with the torque source the trainer still judges by the true load
+        counted_w = float(np.float32(info["mass_in_bucket_kg"] / cfg.reward.rated_load_kg))
         reward, terms = scoop_reward(info["tip_to_pile_m"], info["tip_to_terminal_m"], info["penetrating"],
-                                     float(obs[0]), cfg.reward)
+                                     counted_w, cfg.reward)
         info.update(terms)
         terminated = info["success"]
         return obs, float(reward), bool(terminated), False, info
