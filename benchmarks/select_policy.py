@@ -20,14 +20,14 @@ from pathlib import Path
 import numpy as np
 
 
-def score(candidate: str, angles: list[float], episodes: int, seed: int) -> dict:
+def score(candidate: str, angles: list[float], episodes: int, seed: int, overrides: dict | None = None) -> dict:
     from autoscoop.agents.loading import load_policy
     from autoscoop.config import ScoopConfig
     from autoscoop.evaluate import evaluate
 
     row = {"policy": candidate, "piles": {}}
     for angle in angles:
-        config = ScoopConfig().with_overrides({"pile.angle_deg": angle})
+        config = ScoopConfig().with_overrides({**(overrides or {}), "pile.angle_deg": angle})
         results = evaluate(load_policy(candidate, config), config, episodes, seed=seed, progress=False)
         success = [r.success for r in results]
         cycles = [r.cycle_time_s for r in results if r.success]
@@ -48,17 +48,25 @@ def main() -> int:
     parser.add_argument("--episodes", type=int, default=30, help="episodes per pile and candidate")
     parser.add_argument("--seed", type=int, default=5000, help="first selection seed (reports use 0-99)")
     parser.add_argument("--workers", type=int, default=2)
+    parser.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
+                        help="config override for every pile, e.g. env.mass_source=torque (repeatable)")
     parser.add_argument("--json", type=Path)
     args = parser.parse_args()
+    from autoscoop.config import ScoopConfig, parse_set_args  # noqa: PLC0415
+
+    overrides = parse_set_args(args.overrides)
+    ScoopConfig().with_overrides(overrides)  # a bad key or value fails here, before any work
+    n = len(args.candidates)
     with ProcessPoolExecutor(args.workers) as pool:
-        rows = list(pool.map(score, args.candidates, *zip(*[(args.angles, args.episodes, args.seed)] * len(args.candidates))))
+        rows = list(pool.map(score, args.candidates, [args.angles] * n, [args.episodes] * n, [args.seed] * n,
+                             [overrides] * n))
     rows.sort(key=lambda r: (r["worst_success"], r["mean_delivered_fill"]), reverse=True)
     for r in rows:
         piles = "  ".join(f"{a}°: {p['fill']:.2f}/{p['success']:.2f}/{p['cycle_s']:.1f}s" for a, p in r["piles"].items())
         print(f"{r['worst_success']:.2f} {r['mean_delivered_fill']:.3f}  {piles}  {r['policy']}")
     if args.json:
         args.json.write_text(json.dumps({"angles": args.angles, "episodes": args.episodes, "seed": args.seed,
-                                         "ranking": rows}, indent=2) + "\n")
+                                         "set": args.overrides, "ranking": rows}, indent=2) + "\n")
     return 0
 
 
