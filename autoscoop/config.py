@@ -132,7 +132,8 @@ class EnvConfig(_Section):
     control_period_s: float = _field(0.25, "s", "time between actions", 0.02, 1.0)
     max_episode_s: float = _field(8.0, "s", "episode time limit", 0.5, 60.0)
     timestep_s: float = _field(0.25 / 12, "s", "MuJoCo physics step (a divisor of the control period)", 0.0005, 0.04)
-    mass_source: str = _field("truth", "-", "w_t from counting particles (truth) or from the joint torques (torque)",
+    mass_source: str = _field("truth", "-", "the state's w_t from counting particles (truth) or from the joint "
+                              "torques (torque); the reward always counts",
                               choices=("truth", "torque"))
     load_cell_noise_nm: float = _field(0.2, "N*m", "std of torque noise when mass_source = torque", 0.0, 20.0)
 
