@@ -361,6 +361,21 @@ class PayloadEstimator:
                               chassis_pitch_rad))
 
 
+def reported_mass_kg(estimate_kg: float, previous_kg: float, empty_below_kg: float = 0.0) -> float:
+    """What the load cell reports from one raw estimate, kg: the one rule the environment and the ROS node share.
+
+    Args:
+        estimate_kg: the estimator's mass (eq. 8 or eq. 4), not clipped; NaN or infinite where the
+            estimate is undefined (eq. 4 with the payload's centre right above the tilt joint).
+        previous_kg: the previous report, kept when the estimate is undefined.
+        empty_below_kg: estimates below this read 0 (noise on an empty bucket; a particle count never
+            goes below zero). ``-inf`` reports negative estimates as they are.
+    """
+    if not math.isfinite(estimate_kg):
+        return previous_kg
+    return estimate_kg if estimate_kg >= empty_below_kg else 0.0
+
+
 # ------------------------------------------------------------------------- fitting
 def fit_calibration(lift_rad: np.ndarray, tilt_rad: np.ndarray, lift_torque_nm: np.ndarray,
                     tilt_torque_nm: np.ndarray, mass_kg: np.ndarray, chassis_pitch_rad: np.ndarray | float = 0.0,

@@ -131,6 +131,15 @@ def test_estimators_recover_the_mass_exactly_without_noise():
         np.testing.assert_allclose(force, mass * P.GRAVITY_MPS2 * P.up_in_chassis(pitch), atol=1e-8)
 
 
+def test_the_reported_mass_keeps_the_last_report_when_undefined_and_reads_zero_below_the_floor():
+    assert P.reported_mass_kg(3.2, 1.0) == 3.2
+    assert P.reported_mass_kg(-0.1, 1.0) == 0.0  # noise on an empty bucket
+    assert P.reported_mass_kg(0.2, 1.0, empty_below_kg=0.3) == 0.0
+    assert P.reported_mass_kg(-0.1, 1.0, empty_below_kg=-np.inf) == -0.1
+    for undefined in (np.nan, np.inf, -np.inf):
+        assert P.reported_mass_kg(undefined, 1.7) == 1.7
+
+
 def test_eq8_needs_no_lever_arm_but_eq4_does():
     lift, tilt, mass = -0.05, -0.4, 5.0
     tau = synthetic_torques(lift, tilt, 0.0, mass, np.array([0.15, 0.05]))

@@ -37,6 +37,7 @@ from autoscoop.agents.base import Policy
 from autoscoop.config import ScoopConfig
 from autoscoop.deploy.robot_config import RobotNodeConfig
 from autoscoop.deploy.safety import Command, CommandLimiter, InputWatchdog
+from autoscoop.payload import PayloadCalibration, PayloadEstimator, reported_mass_kg
 from autoscoop.records import EpisodeRecord
 from autoscoop.reward import is_penetrating
 from autoscoop.state import CommandLimits, Measurements, advance_targets, build_state, validate_action
@@ -97,9 +98,10 @@ class MassFromTorque(Protocol):
 class PayloadMass:
     """The node's mass input: :class:`autoscoop.payload.PayloadEstimator`, eq. 8 (both joints) or eq. 4 (bucket).
 
-    Eq. 8 is what the environment's torque sensor uses (``env.mass_source = torque``). Negative
-    estimates read 0, as the environment's do; an estimate below ``empty_below_kg`` reads 0 too. Where
-    the estimate is undefined (eq. 4 with the payload's centre right above the joint) the last one is kept.
+    Eq. 8 is what the environment's torque sensor uses (``env.mass_source = torque``), and both report
+    through :func:`autoscoop.payload.reported_mass_kg`: estimates below ``empty_below_kg`` (0 in the
+    environment) read 0; where the estimate is undefined (eq. 4 with the payload's centre right above
+    the joint) the last report is kept.
 
     Args:
         calibration: payload calibration YAML (``autoscoop payload calibrate``); empty: the nominal one.
@@ -108,8 +110,6 @@ class PayloadMass:
     """
 
     def __init__(self, calibration: str | Path = "", empty_below_kg: float = 0.0, method: str = "eq8") -> None:
-        from autoscoop.payload import PayloadCalibration, PayloadEstimator  # noqa: PLC0415 - numpy only
-
         cal = PayloadCalibration.load(calibration) if calibration else PayloadCalibration()
         self.estimator = PayloadEstimator(cal, method=method)
         self.empty_below_kg = empty_below_kg
@@ -118,8 +118,7 @@ class PayloadMass:
     def __call__(self, lift_torque_nm: float, tilt_torque_nm: float, lift_rad: float, tilt_rad: float,
                  chassis_pitch_rad: float = 0.0) -> float:
         mass = self.estimator.mass_kg(lift_rad, tilt_rad, lift_torque_nm, tilt_torque_nm, chassis_pitch_rad)
-        if math.isfinite(mass):
-            self._last = mass if mass >= self.empty_below_kg else 0.0
+        self._last = reported_mass_kg(mass, self._last, self.empty_below_kg)
         return self._last
 
 

@@ -20,7 +20,7 @@ from pathlib import Path
 import numpy as np
 
 from autoscoop.config import ScoopConfig
-from autoscoop.payload import PayloadCalibration, PayloadEstimator
+from autoscoop.payload import PayloadCalibration, PayloadEstimator, reported_mass_kg
 from autoscoop.sim.scene import ScoopSim
 
 
@@ -99,7 +99,8 @@ class TorqueMassSensor:
         use_imu_pitch: correct for the chassis pitch (the robot has an IMU); else gravity along chassis -z.
         average: average the readings over the physics steps since the previous estimate.
         clip_negative: report 0 instead of negative masses (noise on an empty bucket), as a
-            particle count never goes below zero.
+            particle count never goes below zero. Reports follow :func:`autoscoop.payload.reported_mass_kg`,
+            as the ROS node's do (an undefined estimate keeps the previous report).
     """
 
     def __init__(self, estimator: PayloadEstimator | None = None, noise_nm: float = 0.0,
@@ -114,6 +115,7 @@ class TorqueMassSensor:
         self.average = average
         self.clip_negative = clip_negative
         self._window: ReadingWindow | None = None
+        self._reported_kg = 0.0
 
     @classmethod
     def for_env(cls, config: ScoopConfig, rng: np.random.Generator,
@@ -151,6 +153,5 @@ class TorqueMassSensor:
         """Payload mass now, kg."""
         r = self.read(sim)
         mass = self.estimator.mass_kg(r.lift_rad, r.tilt_rad, r.lift_torque_nm, r.tilt_torque_nm, r.chassis_pitch_rad)
-        if not math.isfinite(mass):
-            return 0.0
-        return max(mass, 0.0) if self.clip_negative else mass
+        self._reported_kg = reported_mass_kg(mass, self._reported_kg, 0.0 if self.clip_negative else -math.inf)
+        return self._reported_kg
