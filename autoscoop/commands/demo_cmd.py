@@ -44,7 +44,8 @@ def run(args: argparse.Namespace) -> int:
 
     started = time.perf_counter()
     config = config_from_args(args)
-    policy, name = load_policy(args.policy, config), args.policy
+    name = args.policy
+    policy = load_policy(name, config)
     out: Path = args.out
     records = out / "records"
     for old in records.glob("episode_*.npz"):  # a previous demo's episodes would join this report

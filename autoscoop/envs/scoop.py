@@ -141,11 +141,10 @@ class ScoopEnv(gym.Env):
             return self._last_obs.copy(), 0.0, True, False, info
 
         obs, info = self._observe()
-        # the reward's w is the counted mass, rounded as the state's w is: the same number as obs[0]
-        # with the truth source; with the torque source the trainer still judges by the true load
-        counted_w = float(np.float32(info["mass_in_bucket_kg"] / cfg.reward.rated_load_kg))
+        # the reward's w is the counted fill factor, rounded as the state's w is (float32): with the
+        # truth source the same number as obs[0]; with the torque source the true load, not the estimate
         reward, terms = scoop_reward(info["tip_to_pile_m"], info["tip_to_terminal_m"], info["penetrating"],
-                                     counted_w, cfg.reward)
+                                     float(np.float32(info["fill_factor"])), cfg.reward)
         info.update(terms)
         terminated = info["success"]
         return obs, float(reward), bool(terminated), False, info
