@@ -18,7 +18,7 @@ from pathlib import Path
 import numpy as np
 
 from autoscoop.agents.loading import load_policy
-from autoscoop.config import ScoopConfig
+from autoscoop.core.config import ScoopConfig
 from autoscoop.deploy.controller import ControllerCore
 from autoscoop.deploy.robot_config import robot_config_from_dict
 from autoscoop.deploy.sim_bridge import SimBridge, run_without_ros

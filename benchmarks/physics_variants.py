@@ -55,7 +55,7 @@ def run(args: argparse.Namespace) -> dict:
 
     import autoscoop.sim.scene as scene  # noqa: PLC0415
     from autoscoop.agents.loading import heuristic_for  # noqa: PLC0415
-    from autoscoop.config import ScoopConfig, parse_set_args  # noqa: PLC0415
+    from autoscoop.core.config import ScoopConfig, parse_set_args  # noqa: PLC0415
     from autoscoop.envs.scoop import make_scoop_env  # noqa: PLC0415
 
     if args.contact_time_constant:

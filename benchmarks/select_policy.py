@@ -22,8 +22,8 @@ import numpy as np
 
 def score(candidate: str, angles: list[float], episodes: int, seed: int, overrides: dict | None = None) -> dict:
     from autoscoop.agents.loading import load_policy
-    from autoscoop.config import ScoopConfig
-    from autoscoop.evaluate import evaluate
+    from autoscoop.core.config import ScoopConfig
+    from autoscoop.evaluation.evaluate import evaluate
 
     row = {"policy": candidate, "piles": {}}
     for angle in angles:
@@ -52,7 +52,7 @@ def main() -> int:
                         help="config override for every pile, e.g. env.mass_source=torque (repeatable)")
     parser.add_argument("--json", type=Path)
     args = parser.parse_args()
-    from autoscoop.config import ScoopConfig, parse_set_args  # noqa: PLC0415
+    from autoscoop.core.config import ScoopConfig, parse_set_args  # noqa: PLC0415
 
     overrides = parse_set_args(args.overrides)
     ScoopConfig().with_overrides(overrides)  # a bad key or value fails here, before any work

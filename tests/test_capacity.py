@@ -2,7 +2,7 @@
 
 import numpy as np
 
-from autoscoop.config import ScoopConfig
+from autoscoop.core.config import ScoopConfig
 from autoscoop.sim.capacity import capacity, fill_until_overflow
 
 RATED_PARTICLES = 7.0 / 0.3

@@ -4,7 +4,7 @@ import gymnasium as gym
 import pytest
 
 import autoscoop  # noqa: F401  (registers the environment)
-from autoscoop.config import ConfigError, ScoopConfig, all_keys, load_yaml, parse_set_args, save_yaml
+from autoscoop.core.config import ConfigError, ScoopConfig, all_keys, load_yaml, parse_set_args, save_yaml
 
 REQUIRED_KEYS = ["pile.angle_deg", "pile.n_particles", "pile.radius_m", "pile.particle_mass_kg", "pile.friction",
                  "robot.start_gap_m", "env.control_period_s", "env.max_episode_s"]
@@ -79,7 +79,7 @@ def test_angle_mix_gives_each_pile_variant_one_of_the_angles():
 
 
 def test_a_yaml_file_overrides_only_the_keys_it_sets(tmp_path):
-    from autoscoop.config import overrides_from_yaml
+    from autoscoop.core.config import overrides_from_yaml
 
     (tmp_path / "c.yaml").write_text("pile:\n  angle_deg: 28\nenv.max_episode_s: 6\n")
     assert overrides_from_yaml(tmp_path / "c.yaml") == {"pile.angle_deg": 28, "env.max_episode_s": 6}

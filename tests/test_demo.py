@@ -7,11 +7,11 @@ import pytest
 
 from autoscoop.agents.loading import heuristic_for
 from autoscoop.cli import main
-from autoscoop.config import ScoopConfig
-from autoscoop.evaluate import evaluate
-from autoscoop.glbackend import choose_gl_backend, has_display
-from autoscoop.records import load_record
-from autoscoop.recorder import record_name
+from autoscoop.core.config import ScoopConfig
+from autoscoop.evaluation.evaluate import evaluate
+from autoscoop.sim.glbackend import choose_gl_backend, has_display
+from autoscoop.envs.records import load_record
+from autoscoop.evaluation.recorder import record_name
 
 needs_gl = pytest.mark.skipif(not (os.environ.get("MUJOCO_GL") or has_display(os.environ)),
                               reason="no display and no off-screen OpenGL (install libosmesa6)")
@@ -42,7 +42,7 @@ def test_demo_runs_end_to_end_on_a_short_episode(tmp_path, capsys):
 
 @needs_gl
 def test_filming_an_episode_does_not_change_it(tmp_path):
-    from autoscoop.render import render_episode
+    from autoscoop.evaluation.render import render_episode
 
     config = ScoopConfig().with_overrides({"env.max_episode_s": 1.0, "pile.variants": 1})
     capture, filmed, _ = render_episode(heuristic_for(config), config, seed=1, fps=10, size=(192, 112))
@@ -65,7 +65,7 @@ def test_a_missing_shipped_policy_stops_the_demo_instead_of_showing_another(monk
 
 
 def test_headless_machines_get_an_off_screen_backend(monkeypatch):
-    import autoscoop.glbackend as gl
+    import autoscoop.sim.glbackend as gl
 
     assert choose_gl_backend({"MUJOCO_GL": "glfw"}) == "glfw"
     assert choose_gl_backend({"DISPLAY": ":0"}) is None or os.name != "posix"

@@ -3,7 +3,7 @@
 import pytest
 
 from autoscoop.cli import main
-from autoscoop.config import ConfigError
+from autoscoop.core.config import ConfigError
 from autoscoop.deploy.robot_config import (PotentiometerCalibration, RobotNodeConfig, load_robot_config,
                                            robot_config_from_dict)
 
@@ -77,7 +77,7 @@ def test_controller_check_prints_the_config_without_ros(capsys):
 def test_the_example_robot_config_is_valid_and_its_calibration_round_trips_through_the_simulator():
     from pathlib import Path
 
-    from autoscoop.config import ScoopConfig
+    from autoscoop.core.config import ScoopConfig
     from autoscoop.deploy.controller import ControllerCore
     from autoscoop.deploy.sim_bridge import SimBridge
 

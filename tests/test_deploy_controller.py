@@ -6,11 +6,11 @@ import numpy as np
 import pytest
 
 from autoscoop.agents.loading import load_policy
-from autoscoop.config import ScoopConfig
+from autoscoop.core.config import ScoopConfig
 from autoscoop.deploy.controller import ControllerCore
 from autoscoop.deploy.robot_config import RobotNodeConfig, robot_config_from_dict
 from autoscoop.deploy.safety import CommandLimiter, InputWatchdog
-from autoscoop.records import STEP_FIELDS, load_record
+from autoscoop.envs.records import STEP_FIELDS, load_record
 
 TASK = ScoopConfig()
 PERIOD, TIMEOUT = 0.25, 0.5
@@ -258,7 +258,7 @@ def test_payload_from_a_topic_replaces_the_torque_estimate():
 
 def _held_payload_torques(lift, tilt, mass_kg, pitch=0.0):
     """Joint torques (lift, tilt) that hold the arm, the bucket and ``mass_kg`` at an off-centre point."""
-    from autoscoop import payload as P
+    from autoscoop.core import payload as P
 
     jac = P.bucket_point_jacobian(lift, tilt, np.array([0.13, 0.02]))  # not the calibration's point: eq. 8 needs none
     return P.gravity_torques(lift, tilt, pitch) + jac.T @ (mass_kg * P.GRAVITY_MPS2 * P.up_in_chassis(pitch))
@@ -268,7 +268,7 @@ def test_the_node_weighs_the_payload_with_eq8_averaged_over_the_period_like_the_
     lift, tilt, pitch, mass = 0.0, -0.45, 0.05, 4.2
     tau = _held_payload_torques(lift, tilt, mass, pitch)
     quat = (math.cos(pitch / 2), 0.0, math.sin(pitch / 2), 0.0)  # nose down about +y
-    from autoscoop.payload import pitch_from_quaternion
+    from autoscoop.core.payload import pitch_from_quaternion
 
     assert pitch_from_quaternion(*quat) == pytest.approx(pitch)
     core = make_core()

@@ -7,7 +7,7 @@ from gymnasium.utils.env_checker import check_env
 
 import autoscoop  # noqa: F401
 from autoscoop.envs.scoop import ScoopEnv
-from autoscoop.state import STATE_NAMES
+from autoscoop.core.state import STATE_NAMES
 
 SMALL = {"pile.variants": 2}
 

@@ -15,8 +15,8 @@ pytest.importorskip("onnx")
 from torch import nn  # noqa: E402
 
 from autoscoop.deploy.export import PARITY_TOLERANCE, check_parity, export_onnx, exportable_actor, random_states  # noqa: E402
-from autoscoop.deploy.onnx_policy import OnnxPolicy  # noqa: E402
-from autoscoop.state import STATE_CENTRE, STATE_SCALE  # noqa: E402
+from autoscoop.agents.onnx_policy import OnnxPolicy  # noqa: E402
+from autoscoop.core.state import STATE_CENTRE, STATE_SCALE  # noqa: E402
 
 
 class ScaledPaperActor(nn.Module):
@@ -86,7 +86,7 @@ def test_a_foreign_onnx_file_is_refused_with_a_reason(tmp_path):
 
 def test_the_heuristic_has_nothing_to_export():
     from autoscoop.agents.loading import load_policy
-    from autoscoop.config import ScoopConfig
+    from autoscoop.core.config import ScoopConfig
 
     with pytest.raises(ValueError, match="no neural network to export"):
         exportable_actor(load_policy("heuristic", ScoopConfig()))
@@ -98,7 +98,7 @@ def test_the_controller_runs_an_onnx_policy_without_torch(exported):
         import sys
         sys.modules["torch"] = None  # any import of torch now fails
         from autoscoop.agents.loading import load_policy
-        from autoscoop.config import ScoopConfig
+        from autoscoop.core.config import ScoopConfig
         from autoscoop.deploy.controller import ControllerCore
         from autoscoop.deploy.robot_config import RobotNodeConfig
         task = ScoopConfig()

@@ -6,9 +6,9 @@ import numpy as np
 
 from autoscoop.agents.loading import heuristic_for
 from autoscoop.cli import main
-from autoscoop.config import ScoopConfig
+from autoscoop.core.config import ScoopConfig
 from autoscoop.envs.scoop import make_scoop_env
-from autoscoop.evaluate import run_episode
+from autoscoop.evaluation.evaluate import run_episode
 
 
 def test_heuristic_scoops_and_reaches_the_terminal_point():
@@ -55,7 +55,7 @@ def test_bench_command_reports_the_three_speeds(tmp_path):
 
 def test_the_heuristic_scales_its_speed_with_the_configs_limit():
     from autoscoop.agents.loading import heuristic_for
-    from autoscoop.config import ScoopConfig
+    from autoscoop.core.config import ScoopConfig
 
     faster = ScoopConfig().with_overrides({"robot.max_speed_mps": 0.2})
     assert heuristic_for(faster).params.limits.max_speed_mps == 0.2

@@ -7,8 +7,8 @@ import mujoco
 import numpy as np
 import pytest
 
-from autoscoop import kinematics
-from autoscoop.config import ScoopConfig
+from autoscoop.core import kinematics
+from autoscoop.core.config import ScoopConfig
 from autoscoop.sim.scene import ScoopSim, scene_path
 
 NAMED = {
@@ -79,7 +79,7 @@ def test_bucket_side_plates_bound_the_counted_width():
 
 
 def test_bucket_plates_in_the_model_are_the_generators_output():
-    """tools/bucket_geometry.py with its defaults (the outline of autoscoop.kinematics) prints loader.xml's plates."""
+    """tools/bucket_geometry.py with its defaults (the outline of autoscoop.core.kinematics) prints loader.xml's plates."""
     import subprocess
     import sys
     from pathlib import Path

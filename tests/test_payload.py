@@ -1,12 +1,12 @@
-"""Payload statics (autoscoop.payload): kinematics and gravity against MuJoCo, the Jacobian against
+"""Payload statics (autoscoop.core.payload): kinematics and gravity against MuJoCo, the Jacobian against
 finite differences, both estimators on synthetic torques, the calibration fit and its YAML."""
 
 import mujoco
 import numpy as np
 import pytest
 
-from autoscoop import kinematics
-from autoscoop import payload as P
+from autoscoop.core import kinematics
+from autoscoop.core import payload as P
 from autoscoop.sim.scene import scene_path
 
 RNG_SEED = 20211
@@ -206,6 +206,6 @@ def test_payload_module_does_not_import_the_simulator():
     import subprocess
     import sys
 
-    code = "import sys, autoscoop.payload; print('mujoco' in sys.modules)"
+    code = "import sys, autoscoop.core.payload; print('mujoco' in sys.modules)"
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
     assert out.strip() == "False"

@@ -5,12 +5,12 @@ import argparse
 import numpy as np
 import pytest
 
-from autoscoop import payload as P
+from autoscoop.core import payload as P
 from autoscoop.agents.loading import heuristic_for
 from autoscoop.commands import bench_cmd, payload_cmd
-from autoscoop.config import ScoopConfig
+from autoscoop.core.config import ScoopConfig
 from autoscoop.envs.scoop import ScoopEnv
-from autoscoop.payload_bench import evaluate_holds, hold_records, run_payload_bench, static_holds
+from autoscoop.evaluation.payload_bench import evaluate_holds, hold_records, run_payload_bench, static_holds
 
 CARRY_POSE = ((-0.10, -0.50),)
 

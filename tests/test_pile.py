@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from autoscoop.config import PileConfig
+from autoscoop.core.config import PileConfig
 from autoscoop.sim.pile import face_slope_deg, layer_rows, pile_layout
 
 

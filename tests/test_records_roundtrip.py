@@ -4,11 +4,11 @@ import numpy as np
 import pytest
 
 from autoscoop.agents.loading import heuristic_for
-from autoscoop.config import ScoopConfig
+from autoscoop.core.config import ScoopConfig
 from autoscoop.envs.scoop import make_scoop_env
-from autoscoop.evaluate import evaluate, run_episode
-from autoscoop.records import STEP_FIELDS, load_record
-from autoscoop.recorder import EpisodeRecorder, record_name
+from autoscoop.evaluation.evaluate import evaluate, run_episode
+from autoscoop.envs.records import STEP_FIELDS, load_record
+from autoscoop.evaluation.recorder import EpisodeRecorder, record_name
 
 SHORT = ScoopConfig().with_overrides({"env.max_episode_s": 1.5, "pile.variants": 1})
 

@@ -22,8 +22,8 @@ from autoscoop.deploy.robot_config import RobotNodeConfig  # noqa: E402
 from autoscoop.deploy.ros1 import import_rospy  # noqa: E402
 from autoscoop.deploy.ros1.master import RosMaster  # noqa: E402
 from autoscoop.deploy.ros1.probe import RobotProbe, estop_trial, latency_summary, watchdog_trial  # noqa: E402
-from autoscoop.evaluate import summarize  # noqa: E402
-from autoscoop.records import load_record  # noqa: E402
+from autoscoop.evaluation.evaluate import summarize  # noqa: E402
+from autoscoop.envs.records import load_record  # noqa: E402
 
 pytestmark = pytest.mark.filterwarnings("ignore:notifyAll:DeprecationWarning")  # inside Debian's rospy
 
@@ -145,7 +145,7 @@ def test_sim_and_controller_scoop_over_ros_with_remapped_topics(master, tmp_path
         log = stop(controller)
     assert sim.returncode == 0, sim.stdout[-3000:] + sim.stderr[-3000:] + log[-3000:]
     summary = json.loads(out.read_text())
-    from autoscoop.config import ScoopConfig
+    from autoscoop.core.config import ScoopConfig
 
     assert set(summarize([], ScoopConfig(), "x")) <= set(summary)  # the same summary as `autoscoop eval`
     assert summary["policy"] == "heuristic" and summary["episodes"] == 1

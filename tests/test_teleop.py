@@ -5,12 +5,12 @@ import contextlib
 import numpy as np
 import pytest
 
-from autoscoop.config import ScoopConfig
+from autoscoop.core.config import ScoopConfig
 from autoscoop.envs.scoop import make_scoop_env
-from autoscoop.records import load_record
-from autoscoop.recorder import EpisodeRecorder
-from autoscoop.state import CommandLimits
-from autoscoop.teleop import (BINDINGS, KEY_DOWN, KEY_ENTER, KEY_KP_8, KEY_LEFT, KEY_PAGE_DOWN, KEY_PAGE_UP,
+from autoscoop.envs.records import load_record
+from autoscoop.evaluation.recorder import EpisodeRecorder
+from autoscoop.core.state import CommandLimits
+from autoscoop.evaluation.teleop import (BINDINGS, KEY_DOWN, KEY_ENTER, KEY_KP_8, KEY_LEFT, KEY_PAGE_DOWN, KEY_PAGE_UP,
                               KEY_RIGHT, KEY_SPACE, KEY_UP, SessionOptions, TeleopKeys, TeleopSteps, help_lines,
                               run_session)
 

@@ -22,7 +22,7 @@ from autoscoop.agents.loading import PolicyError, load_policy
 from autoscoop.agents.networks import PaperActor
 from autoscoop.agents.policy_files import ActorPolicy, PolicyFileError, save_actor
 from autoscoop.cli import main
-from autoscoop.config import ScoopConfig
+from autoscoop.core.config import ScoopConfig
 
 FAST = ["--set", "pile.variants=2", "--no-progress"]
 
@@ -91,7 +91,7 @@ def test_train_command_smoke_run_writes_the_run_directory(tmp_path):
 def test_resume_continues_steps_and_keeps_the_replay_buffer(tmp_path, monkeypatch):
     from stable_baselines3 import DDPG
 
-    from autoscoop import train as train_mod
+    from autoscoop.training import run as train_mod
 
     out = tmp_path / "run"
     original = train_mod.EpisodeLogger._end_episode
@@ -232,7 +232,7 @@ def test_scripted_demonstrations_fill_the_replay_buffer():
 
 
 def test_demonstrations_need_an_off_policy_algorithm(tmp_path):
-    from autoscoop import train as train_mod
+    from autoscoop.training import run as train_mod
 
     with pytest.raises(ValueError, match="off-policy"):
         train_mod.train(train_mod.TrainArgs(algo="ppo", episodes=2, out=tmp_path / "run", progress=False,

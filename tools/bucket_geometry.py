@@ -3,7 +3,7 @@
 The bucket's inner outline is the paper's quadrilateral (SPEC.md): tilt joint J, point A 0.124 m
 from J at +46 deg, cutting edge (tip) 0.215 m from J at 0 deg, point B 0.10 m from J at -41 deg,
 angles measured from the J->tip line. Frame: the bucket body frame, x along J->tip, z toward A,
-y across the bucket. The outline and the inner width are read from ``autoscoop.kinematics`` (the
+y across the bucket. The outline and the inner width are read from ``autoscoop.core.kinematics`` (the
 same numbers that count particles as inside), so the defaults print the plates in ``loader.xml``
 (a test checks that). The shell is B->J->A (back) and B->tip (floor); A->tip is the mouth. Each
 plate lies outside the outline with its inner face on it, so a particle's centre inside the
@@ -16,7 +16,7 @@ import math
 
 import numpy as np
 
-from autoscoop.kinematics import BUCKET_INNER_HALF_WIDTH_M, BUCKET_INSIDE_POLYGON_M
+from autoscoop.core.kinematics import BUCKET_INNER_HALF_WIDTH_M, BUCKET_INSIDE_POLYGON_M
 
 J, A, TIP, B = BUCKET_INSIDE_POLYGON_M
 PLATE_THICKNESS_M = 0.02
@@ -52,7 +52,7 @@ def floor_wedge(thickness: float, half_width: float, edge_thickness: float = 0.0
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__)
     parser.add_argument("--width", type=float, default=2 * BUCKET_INNER_HALF_WIDTH_M,
-                        help="inner width across the bucket, m (default: autoscoop.kinematics)")
+                        help="inner width across the bucket, m (default: autoscoop.core.kinematics)")
     parser.add_argument("--thickness", type=float, default=PLATE_THICKNESS_M, help="plate thickness, m")
     args = parser.parse_args()
     hw, t = args.width / 2, args.thickness

@@ -22,7 +22,7 @@ from pathlib import Path
 import numpy as np
 
 from autoscoop.agents.loading import load_policy
-from autoscoop.config import ScoopConfig, parse_set_args
+from autoscoop.core.config import ScoopConfig, parse_set_args
 from autoscoop.envs.scoop import make_scoop_env
 
 ACCEPTANCE_POINTS = 5.0

@@ -35,7 +35,7 @@ def main() -> int:
 
     import autoscoop.sim.scene as scene  # noqa: PLC0415
     from autoscoop.agents.loading import heuristic_for  # noqa: PLC0415
-    from autoscoop.config import ScoopConfig, parse_set_args  # noqa: PLC0415
+    from autoscoop.core.config import ScoopConfig, parse_set_args  # noqa: PLC0415
     from autoscoop.envs.scoop import make_scoop_env  # noqa: PLC0415
 
     if args.contact_time_constant:

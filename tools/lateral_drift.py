@@ -15,7 +15,7 @@ import sys
 import numpy as np
 
 from autoscoop.agents.loading import load_policy
-from autoscoop.config import ScoopConfig, parse_set_args
+from autoscoop.core.config import ScoopConfig, parse_set_args
 from autoscoop.envs.scoop import make_scoop_env
 
 

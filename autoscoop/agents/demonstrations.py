@@ -12,7 +12,7 @@ from typing import Any
 import numpy as np
 
 from autoscoop.agents.loading import heuristic_for
-from autoscoop.config import ScoopConfig
+from autoscoop.core.config import ScoopConfig
 from autoscoop.envs.scoop import make_scoop_env
 
 DEMONSTRATION_SEED = 900_000

@@ -15,9 +15,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from autoscoop import kinematics
-from autoscoop.config import RewardConfig
-from autoscoop.state import CommandLimits, advance_targets
+from autoscoop.core import kinematics
+from autoscoop.core.config import RewardConfig
+from autoscoop.core.state import CommandLimits, advance_targets
 
 
 @dataclass(frozen=True)

@@ -6,10 +6,10 @@ import json
 from importlib import resources
 from pathlib import Path
 
-from autoscoop.agents.base import Policy
+from autoscoop.core.policy import Policy
 from autoscoop.agents.heuristic import HeuristicParams, HeuristicScooper
-from autoscoop.config import ScoopConfig
-from autoscoop.state import CommandLimits
+from autoscoop.core.config import ScoopConfig
+from autoscoop.core.state import CommandLimits
 
 DEFAULT_POLICY = "default"
 """Name of the policy shipped inside the package (``autoscoop/policies/default.safetensors``)."""
@@ -47,7 +47,7 @@ def load_policy(spec: str, config: ScoopConfig, trust: bool = False) -> Policy:
     if spec == "heuristic":
         return heuristic_for(config)
     if spec.endswith(".onnx") and Path(spec).is_file():  # before any torch import: the robot may lack torch
-        from autoscoop.deploy.onnx_policy import OnnxPolicy  # noqa: PLC0415
+        from autoscoop.agents.onnx_policy import OnnxPolicy  # noqa: PLC0415
 
         return OnnxPolicy(spec)
     from autoscoop.agents.policy_files import ActorPolicy, PolicyFileError  # noqa: PLC0415 - torch
@@ -69,7 +69,7 @@ def load_policy(spec: str, config: ScoopConfig, trust: bool = False) -> Policy:
         if path.suffix in (".safetensors", ".json"):
             return ActorPolicy(path)
         if path.suffix == ".onnx":
-            from autoscoop.deploy.onnx_policy import OnnxPolicy  # noqa: PLC0415
+            from autoscoop.agents.onnx_policy import OnnxPolicy  # noqa: PLC0415
 
             return OnnxPolicy(path)
         if path.suffix == ".zip":
@@ -112,7 +112,7 @@ def _load_sb3_zip(path: Path, trust: bool) -> Policy:
         raise PolicyError(f"{path} is a Stable-Baselines3 zip, which runs pickle when loaded, and no autoscoop run "
                           "directory vouches for it (run.json with its SHA-256). Load its policy.safetensors "
                           "instead, or pass --trust if you trust where it came from.")
-    from autoscoop.train import ALGORITHMS  # noqa: PLC0415
+    from autoscoop.agents.algorithms import ALGORITHMS  # noqa: PLC0415 - torch
 
     algo = None
     run_json = path.parent / "run.json"

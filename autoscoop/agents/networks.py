@@ -3,7 +3,7 @@
 Actor: state -> 100 -> 80 -> 60 -> 3, each hidden layer fully connected, then layer normalisation,
 then ReLU; tanh on the output. Critic: state -> 100 (LayerNorm, ReLU); the action joins there;
 -> 80 -> 60 (each LayerNorm, ReLU) -> Q. Both start with a fixed normalisation of the state
-(:data:`autoscoop.state.STATE_CENTRE`, :data:`autoscoop.state.STATE_SCALE`) stored as buffers, so
+(:data:`autoscoop.core.state.STATE_CENTRE`, :data:`autoscoop.core.state.STATE_SCALE`) stored as buffers, so
 a saved actor carries its input scaling.
 """
 
@@ -14,7 +14,7 @@ from typing import Sequence
 import torch
 from torch import nn
 
-from autoscoop.state import ACTION_SIZE, STATE_CENTRE, STATE_SCALE, STATE_SIZE
+from autoscoop.core.state import ACTION_SIZE, STATE_CENTRE, STATE_SCALE, STATE_SIZE
 
 PAPER_LAYERS = (100, 80, 60)
 

@@ -75,7 +75,7 @@ def load_actor(path: str | Path) -> tuple[PaperActor, dict[str, Any]]:
 
 
 class ActorPolicy:
-    """A :class:`autoscoop.agents.base.Policy` that runs a saved actor with torch.
+    """A :class:`autoscoop.core.policy.Policy` that runs a saved actor with torch.
 
     Args:
         path: the ``.safetensors`` file (its ``.json`` sidecar beside it).

@@ -17,7 +17,7 @@ from autoscoop.agents.networks import PAPER_LAYERS, PaperQNetwork, StateNormaliz
 
 
 class NormalizedState(BaseFeaturesExtractor):
-    """Features = the state under the fixed normalisation of :mod:`autoscoop.state`."""
+    """Features = the state under the fixed normalisation of :mod:`autoscoop.core.state`."""
 
     def __init__(self, observation_space: gym.spaces.Box) -> None:
         super().__init__(observation_space, features_dim=int(observation_space.shape[0]))

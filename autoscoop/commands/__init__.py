@@ -8,7 +8,7 @@ import math
 from pathlib import Path
 from typing import Any
 
-from autoscoop.config import ScoopConfig, load_yaml, parse_set_args
+from autoscoop.core.config import ScoopConfig, load_yaml, parse_set_args
 
 
 def add_config_args(parser: argparse.ArgumentParser) -> None:

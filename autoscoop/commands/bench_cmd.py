@@ -8,14 +8,14 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from autoscoop.bench import run_bench
+from autoscoop.evaluation.bench import run_bench
 from autoscoop.commands import add_config_args, config_from_args, write_json
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
     parser = subparsers.add_parser("bench", help="measure simulator speed on one core", description=__doc__)
     parser.add_argument("target", nargs="?", choices=["payload"],
-                        help="'payload': error of the torque mass estimate (autoscoop.payload_bench) instead of speed")
+                        help="'payload': error of the torque mass estimate (autoscoop.evaluation.payload_bench) instead of speed")
     parser.add_argument("--episodes", type=int, default=10, help="scripted episodes per repeat (payload: moving scoops)")
     parser.add_argument("--repeats", type=int, default=3, help="timed repeats (the median is reported)")
     parser.add_argument("--json", type=Path, help="write the results to this JSON file")

@@ -18,7 +18,7 @@ from pathlib import Path
 
 from autoscoop.agents.loading import PolicyError, load_policy
 from autoscoop.commands import add_config_args, config_from_args, write_json
-from autoscoop.evaluate import evaluate, format_table, summarize
+from autoscoop.evaluation.evaluate import evaluate, format_table, summarize
 
 PILE_ANGLES_DEG = (25.0, 32.0, 40.0)
 """The three public pile angles compared (mean inclination of the pile's face)."""

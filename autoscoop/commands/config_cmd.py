@@ -6,7 +6,7 @@ import argparse
 from pathlib import Path
 
 from autoscoop.commands import add_config_args, config_from_args
-from autoscoop.config import save_yaml
+from autoscoop.core.config import save_yaml
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:

@@ -12,11 +12,11 @@ import argparse
 import time
 from pathlib import Path
 
-from autoscoop.agents.base import Policy
+from autoscoop.core.policy import Policy
 from autoscoop.agents.loading import load_policy
 from autoscoop.commands import add_config_args, config_from_args, write_json
-from autoscoop.config import ScoopConfig
-from autoscoop.evaluate import evaluate, format_table, summarize
+from autoscoop.core.config import ScoopConfig
+from autoscoop.evaluation.evaluate import evaluate, format_table, summarize
 
 DEFAULT_OUT = Path("out/demo")
 
@@ -74,7 +74,7 @@ def run(args: argparse.Namespace) -> int:
 
 
 def _film(policy: Policy, config: ScoopConfig, seed: int, fps: float, out: Path, evaluated) -> list[Path]:
-    from autoscoop.render import render_episode  # noqa: PLC0415 - needs OpenGL
+    from autoscoop.evaluation.render import render_episode  # noqa: PLC0415 - needs OpenGL
     from autoscoop.report.video import write_gif, write_mp4  # noqa: PLC0415
 
     capture, _, result = render_episode(policy, config, seed, fps=fps)

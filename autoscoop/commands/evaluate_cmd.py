@@ -7,7 +7,7 @@ from pathlib import Path
 
 from autoscoop.agents.loading import load_policy
 from autoscoop.commands import add_config_args, config_from_args, write_json
-from autoscoop.evaluate import evaluate, format_table, summarize
+from autoscoop.evaluation.evaluate import evaluate, format_table, summarize
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:

@@ -4,7 +4,7 @@ The records (``.npz`` episode records, or folders of them) must hold static mome
 the bucket clear of the pile, ``mass_in_bucket_kg`` the known payload (counted in simulation, weighed
 on the robot). ``autoscoop bench payload --records DIR`` writes such records from static holds.
 The fit (torque offsets and the payload's centre of mass in the bucket frame) is written as a small
-YAML file that ``autoscoop.payload.PayloadEstimator.from_yaml`` (the environment, the ROS node) loads.
+YAML file that ``autoscoop.core.payload.PayloadEstimator.from_yaml`` (the environment, the ROS node) loads.
 """
 
 from __future__ import annotations
@@ -15,8 +15,8 @@ from pathlib import Path
 
 import numpy as np
 
-from autoscoop.payload import PayloadCalibration, fit_calibration
-from autoscoop.records import load_record
+from autoscoop.core.payload import PayloadCalibration, fit_calibration
+from autoscoop.envs.records import load_record
 
 STATIC_JOINT_STEP_RAD = 0.005
 """Largest change of either joint since the previous step for a step of a moving episode to count as static, rad."""
@@ -109,7 +109,7 @@ def run_calibrate(args: argparse.Namespace) -> int:
 def run_payload_bench_cmd(args: argparse.Namespace) -> int:
     """``autoscoop bench payload``: static holds with 0..25 particles and moving scripted scoops."""
     from autoscoop.commands import config_from_args, write_json  # noqa: PLC0415
-    from autoscoop.payload_bench import run_payload_bench  # noqa: PLC0415
+    from autoscoop.evaluation.payload_bench import run_payload_bench  # noqa: PLC0415
 
     if args.episodes < 0:
         raise ValueError(f"--episodes must be at least 0, got {args.episodes}")

@@ -14,7 +14,7 @@ import math
 from pathlib import Path
 
 from autoscoop.commands import add_config_args, config_from_args, write_json
-from autoscoop.config import ConfigError, ScoopConfig, parse_set_args
+from autoscoop.core.config import ConfigError, ScoopConfig, parse_set_args
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -126,7 +126,7 @@ def run_sim(args: argparse.Namespace) -> int:
     from autoscoop.deploy.robot_config import load_robot_config  # noqa: PLC0415
     from autoscoop.deploy.ros1 import RosUnavailable  # noqa: PLC0415
     from autoscoop.deploy.sim_bridge import SensorNoise, SimBridge  # noqa: PLC0415
-    from autoscoop.evaluate import format_table, summarize  # noqa: PLC0415
+    from autoscoop.evaluation.evaluate import format_table, summarize  # noqa: PLC0415
 
     config = config_from_args(args)
     noise = SensorNoise(joint_rad=args.joint_noise_rad, speed_mps=args.speed_noise_mps, range_m=args.range_noise_m,

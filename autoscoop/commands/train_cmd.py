@@ -6,13 +6,13 @@ import argparse
 from pathlib import Path
 
 from autoscoop.commands import add_config_args
-from autoscoop.config import overrides_from_yaml, parse_set_args
+from autoscoop.core.config import overrides_from_yaml, parse_set_args
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
     parser = subparsers.add_parser("train", help="train a controller", description=__doc__)
     parser.add_argument("--algo", default="ddpg", choices=["ddpg", "td3", "sac", "ppo"],
-                        help="algorithm (default ddpg, the paper's); settings in autoscoop/hyperparams/ALGO.yaml")
+                        help="algorithm (default ddpg, the paper's); settings in autoscoop/training/hyperparams/ALGO.yaml")
     parser.add_argument("--episodes", type=int, default=800, help="training episodes (default 800, as in the paper)")
     parser.add_argument("--seed", type=int, default=0, help="random seed")
     parser.add_argument("--n-envs", type=int, default=1, help="parallel simulators in subprocesses (default 1)")
@@ -38,7 +38,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from autoscoop.train import TrainArgs, resume, train  # noqa: PLC0415 - torch is slow to import
+    from autoscoop.training.run import TrainArgs, resume, train  # noqa: PLC0415 - torch is slow to import
 
     if args.resume:
         run_dir = resume(args.resume, progress=not args.no_progress)

@@ -6,9 +6,9 @@ numbers with the time it arrived, and calls :meth:`ControllerCore.update` whenev
 :class:`~autoscoop.deploy.safety.Command` it returns is to be published at once.
 
 Per control period (``control.control_period_s``, 0.25 s) while a scoop runs and every input is
-healthy, it builds the 12-number state with :func:`autoscoop.state.build_state` (mass from the joint
+healthy, it builds the 12-number state with :func:`autoscoop.core.state.build_state` (mass from the joint
 torques, averaged over the period, through the payload estimator), asks the policy for an action, moves the targets with
-:func:`autoscoop.state.advance_targets` (the environment's scaling) and clamps the command to the
+:func:`autoscoop.core.state.advance_targets` (the environment's scaling) and clamps the command to the
 robot's limits. Otherwise:
 
 | situation                                  | speed | arm                                  |
@@ -32,15 +32,16 @@ from typing import Any, Callable, Protocol, Sequence
 
 import numpy as np
 
-from autoscoop import __version__, kinematics
-from autoscoop.agents.base import Policy
-from autoscoop.config import ScoopConfig
+from autoscoop.core import kinematics
+from autoscoop.core.version import __version__
+from autoscoop.core.policy import Policy
+from autoscoop.core.config import ScoopConfig
 from autoscoop.deploy.robot_config import RobotNodeConfig
 from autoscoop.deploy.safety import Command, CommandLimiter, InputWatchdog
-from autoscoop.payload import PayloadCalibration, PayloadEstimator, reported_mass_kg
-from autoscoop.records import EpisodeRecord
-from autoscoop.reward import is_penetrating
-from autoscoop.state import CommandLimits, Measurements, advance_targets, build_state, validate_action
+from autoscoop.core.payload import PayloadCalibration, PayloadEstimator, reported_mass_kg
+from autoscoop.envs.records import EpisodeRecord
+from autoscoop.core.reward import is_penetrating
+from autoscoop.core.state import CommandLimits, Measurements, advance_targets, build_state, validate_action
 
 SENSOR_INPUTS = ("joint_states", "odom", "pile_range")
 """Inputs the watchdog always requires fresh; also the payload's (per ``payload.source`` and
@@ -96,10 +97,10 @@ class MassFromTorque(Protocol):
 
 
 class PayloadMass:
-    """The node's mass input: :class:`autoscoop.payload.PayloadEstimator`, eq. 8 (both joints) or eq. 4 (bucket).
+    """The node's mass input: :class:`autoscoop.core.payload.PayloadEstimator`, eq. 8 (both joints) or eq. 4 (bucket).
 
     Eq. 8 is what the environment's torque sensor uses (``env.mass_source = torque``), and both report
-    through :func:`autoscoop.payload.reported_mass_kg`: estimates below ``empty_below_kg`` (0 in the
+    through :func:`autoscoop.core.payload.reported_mass_kg`: estimates below ``empty_below_kg`` (0 in the
     environment) read 0; where the estimate is undefined (eq. 4 with the payload's centre right above
     the joint) the last report is kept.
 

@@ -3,7 +3,7 @@
 The exported graph maps the raw 12-number state (``state``, float32, any batch size) to the action
 in [-1, 1] (``action``): whatever the actor does to its input (the fixed state normalisation of
 :class:`autoscoop.agents.networks.PaperActor`) and to its output (tanh) is inside the module, so it
-is inside the file. :class:`autoscoop.deploy.onnx_policy.OnnxPolicy` runs the file with onnxruntime
+is inside the file. :class:`autoscoop.agents.onnx_policy.OnnxPolicy` runs the file with onnxruntime
 alone. The export uses torch's TorchScript-based exporter (``dynamo=False``), which needs nothing
 beyond torch and onnx.
 """
@@ -18,9 +18,9 @@ from typing import Any
 
 import numpy as np
 
-from autoscoop import __version__
-from autoscoop.deploy.onnx_policy import INPUT_NAME, ONNX_FORMAT, OUTPUT_NAME, OnnxPolicy
-from autoscoop.state import ACTION_NAMES, STATE_NAMES, STATE_SIZE
+from autoscoop.core.version import __version__
+from autoscoop.agents.onnx_policy import INPUT_NAME, ONNX_FORMAT, OUTPUT_NAME, OnnxPolicy
+from autoscoop.core.state import ACTION_NAMES, STATE_NAMES, STATE_SIZE
 
 OPSET = 17
 """ONNX opset: 17 has LayerNormalization as one operator."""
@@ -54,7 +54,7 @@ def export_onnx(actor: Any, path: str | Path, metadata: dict[str, Any] | None = 
     model = onnx.load(str(path))
     entries = {"autoscoop_format": ONNX_FORMAT, "autoscoop_version": __version__,
                "state_names": ",".join(STATE_NAMES), "action_names": ",".join(ACTION_NAMES),
-               "input": f"{INPUT_NAME}: raw state (batch, {STATE_SIZE}) float32, autoscoop.state order",
+               "input": f"{INPUT_NAME}: raw state (batch, {STATE_SIZE}) float32, autoscoop.core.state order",
                "output": f"{OUTPUT_NAME}: (batch, {len(ACTION_NAMES)}) in [-1, 1]",
                **{str(k): str(v) for k, v in (metadata or {}).items()}}
     del model.metadata_props[:]
@@ -66,13 +66,13 @@ def export_onnx(actor: Any, path: str | Path, metadata: dict[str, Any] | None = 
 
 
 def random_states(n: int, seed: int = 0, rated_load_kg: float = 7.0) -> np.ndarray:
-    """``n`` random states (n, 12) float32 over the robot's workspace, built by :func:`autoscoop.state.build_state`.
+    """``n`` random states (n, 12) float32 over the robot's workspace, built by :func:`autoscoop.core.state.build_state`.
 
     Joint angles uniform over their ranges, mass 0-10 kg, 0-1.2 m to the pile, +-0.1 m/s, and the
     changes since the previous step within one step's reach (+-0.05 m/s, +-0.1 rad lift, +-0.25 rad tilt).
     """
-    from autoscoop import kinematics  # noqa: PLC0415
-    from autoscoop.state import Measurements, build_state  # noqa: PLC0415
+    from autoscoop.core import kinematics  # noqa: PLC0415
+    from autoscoop.core.state import Measurements, build_state  # noqa: PLC0415
 
     rng = np.random.default_rng(seed)
     lift = rng.uniform(*kinematics.LIFT_RANGE_RAD, n)

@@ -13,7 +13,7 @@ One YAML file (``autoscoop ros controller --config robot.yaml``), every section 
       tilt: null                                     # null: joint_states already in radians
 
 Every field has a default, a unit and a checked range; a bad value fails at start-up with a message
-naming the dotted key and what is allowed (as :mod:`autoscoop.config` does for the scene).
+naming the dotted key and what is allowed (as :mod:`autoscoop.core.config` does for the scene).
 """
 
 from __future__ import annotations
@@ -28,8 +28,8 @@ from typing import Any, Mapping
 import numpy as np
 import yaml
 
-from autoscoop import kinematics
-from autoscoop.config import ConfigError, _field, _Section
+from autoscoop.core import kinematics
+from autoscoop.core.config import ConfigError, _field, _Section
 
 _BOOL = (True, False)
 
@@ -97,7 +97,7 @@ class EstopSection(_Section):
 
 @dataclass(frozen=True)
 class PayloadSection(_Section):
-    """The state's payload mass: from the joint torques (autoscoop.payload, paper eq. 8 or eq. 4), or reported."""
+    """The state's payload mass: from the joint torques (autoscoop.core.payload, paper eq. 8 or eq. 4), or reported."""
 
     _section = "payload"
     source: str = _field("torque", "-", "mass from the joint torques through the estimator (torque), or as "

@@ -21,12 +21,12 @@ from typing import Any
 
 import numpy as np
 
-from autoscoop.config import ScoopConfig
+from autoscoop.core.config import ScoopConfig
 from autoscoop.deploy.robot_config import RobotNodeConfig
 from autoscoop.envs.scoop import make_scoop_env
-from autoscoop.evaluate import EpisodeResult
-from autoscoop.payload import pitch_from_quaternion
-from autoscoop.state import CommandLimits, advance_targets, servo_rate
+from autoscoop.evaluation.evaluate import EpisodeResult
+from autoscoop.core.payload import pitch_from_quaternion
+from autoscoop.core.state import CommandLimits, advance_targets, servo_rate
 
 MIN_SENSOR_PERIOD_S = 0.02
 """Sensors are published at most this often: every physics step, or every few when steps are shorter."""

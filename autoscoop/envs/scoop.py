@@ -8,11 +8,11 @@ import gymnasium as gym
 import numpy as np
 from gymnasium.wrappers import TimeLimit
 
-from autoscoop import state as state_mod
-from autoscoop.config import ScoopConfig
-from autoscoop.reward import is_penetrating, scoop_reward
+from autoscoop.core import state as state_mod
+from autoscoop.core.config import ScoopConfig
+from autoscoop.core.reward import is_penetrating, scoop_reward
 from autoscoop.sim.scene import ScoopSim
-from autoscoop.state import CommandLimits, Measurements
+from autoscoop.core.state import CommandLimits, Measurements
 
 
 class ScoopEnv(gym.Env):
@@ -35,7 +35,7 @@ class ScoopEnv(gym.Env):
     | 2     | tilt  | tilt angle (+ tips edge down) | [-0.50, 0.90]            | rad  | tilt (joint tilt)     |
 
     ## Observation space
-    ``Box(-inf, inf, (12,), float32)``: the paper's state, built by :func:`autoscoop.state.build_state`.
+    ``Box(-inf, inf, (12,), float32)``: the paper's state, built by :func:`autoscoop.core.state.build_state`.
     Chassis frame: x forward from the chassis centre, z up from the ground.
 
     | index | name    | meaning                                  | unit | source (XML name)                 |
@@ -53,7 +53,7 @@ class ScoopEnv(gym.Env):
 
     With ``env.mass_source = torque``, w comes instead from the lift and tilt torques (sensors
     ``lift_torque``, ``tilt_torque``) averaged over the control period, plus ``env.load_cell_noise_nm``
-    of noise, through paper eq. 8 (:mod:`autoscoop.payload`, :class:`autoscoop.sim.load_cell.TorqueMassSensor`).
+    of noise, through paper eq. 8 (:mod:`autoscoop.core.payload`, :class:`autoscoop.sim.load_cell.TorqueMassSensor`).
 
     ## Reward (paper eq. 5-7)
     ``P_t = 1 - tanh^2(d_end)`` while penetrating (tip within ``reward.delta_m`` of a particle centre),

@@ -1,6 +1,6 @@
 """Episode records as tables: load them, group them, summarise them (mean and std over episodes).
 
-Definitions as in ``autoscoop.evaluate`` (SPEC.md): the cycle time is averaged over successful
+Definitions as in ``autoscoop.evaluation.evaluate`` (SPEC.md): the cycle time is averaged over successful
 episodes only; standard deviations are over episodes (``numpy.std``, ddof = 0), as ``autoscoop eval``
 prints them, so both report the same numbers for the same episodes.
 """
@@ -15,9 +15,9 @@ from typing import Iterable
 
 import numpy as np
 
-from autoscoop.phases import PhaseSpans, phase_spans
-from autoscoop.records import EpisodeRecord, load_record
-from autoscoop.statistics import outcome_statistics
+from autoscoop.core.phases import PhaseSpans, phase_spans
+from autoscoop.envs.records import EpisodeRecord, load_record
+from autoscoop.evaluation.summary import outcome_statistics
 
 MANUAL = "manual"
 """The controller label of records made by hand (``autoscoop teleop``)."""

@@ -21,7 +21,7 @@ from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
 from matplotlib.patches import Circle
 
-from autoscoop.phases import PHASES
+from autoscoop.core.phases import PHASES
 from autoscoop.report.data import Episode
 
 PHASE_COLOURS = {"approach": "#4C72B0", "fill": "#DD8452", "exit": "#55A868"}

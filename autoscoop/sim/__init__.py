@@ -1,6 +1,6 @@
-"""MuJoCo side of autoscoop: the scene builder and named accessors. Simulation only, no plotting."""
+"""MuJoCo side of autoscoop: the scene builder with its public pose and observer API, the pile, the
+load cell, the bucket's capacity, the off-screen OpenGL backend. Simulation only, no plotting.
 
-from autoscoop.sim.pile import pile_layout
-from autoscoop.sim.scene import ScoopSim
-
-__all__ = ["ScoopSim", "pile_layout"]
+Import the modules themselves (``autoscoop.sim.scene``): this package imports nothing, so that
+``autoscoop.sim.glbackend`` can pick a backend before MuJoCo is first imported.
+"""

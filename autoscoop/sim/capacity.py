@@ -13,8 +13,8 @@ from dataclasses import replace
 import mujoco
 import numpy as np
 
-from autoscoop import kinematics
-from autoscoop.config import ScoopConfig
+from autoscoop.core import kinematics
+from autoscoop.core.config import ScoopConfig
 from autoscoop.sim.scene import ScoopSim
 
 HOLD_LIFT_RAD = kinematics.LIFT_RANGE_RAD[0]

@@ -1,6 +1,6 @@
 """The robot's view of the payload in simulation: joint torques plus load-cell noise, turned into kilograms.
 
-:mod:`autoscoop.payload` does the statics (numpy only); this module reads the simulator the way the
+:mod:`autoscoop.core.payload` does the statics (numpy only); this module reads the simulator the way the
 robot reads its sensors (potentiometer angles, actuator torques, IMU pitch), adds the load cell's
 noise, and hands them to the estimator. The environment uses it when ``env.mass_source = torque``.
 
@@ -19,8 +19,8 @@ from pathlib import Path
 
 import numpy as np
 
-from autoscoop.config import ScoopConfig
-from autoscoop.payload import PayloadCalibration, PayloadEstimator, reported_mass_kg
+from autoscoop.core.config import ScoopConfig
+from autoscoop.core.payload import PayloadCalibration, PayloadEstimator, reported_mass_kg
 from autoscoop.sim.scene import ScoopSim
 
 
@@ -99,7 +99,7 @@ class TorqueMassSensor:
         use_imu_pitch: correct for the chassis pitch (the robot has an IMU); else gravity along chassis -z.
         average: average the readings over the physics steps since the previous estimate.
         clip_negative: report 0 instead of negative masses (noise on an empty bucket), as a
-            particle count never goes below zero. Reports follow :func:`autoscoop.payload.reported_mass_kg`,
+            particle count never goes below zero. Reports follow :func:`autoscoop.core.payload.reported_mass_kg`,
             as the ROS node's do (an undefined estimate keeps the previous report).
     """
 

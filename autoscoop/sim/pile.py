@@ -17,7 +17,7 @@ import math
 
 import numpy as np
 
-from autoscoop.config import PileConfig
+from autoscoop.core.config import PileConfig
 
 GAP_M = 0.0005
 """Clearance added between neighbours so no two particles start in contact overlap."""

@@ -13,8 +13,8 @@ from typing import Callable
 import mujoco
 import numpy as np
 
-from autoscoop import kinematics
-from autoscoop.config import PileConfig, ScoopConfig
+from autoscoop.core import kinematics
+from autoscoop.core.config import PileConfig, ScoopConfig
 from autoscoop.sim.pile import pile_layout
 
 WHEELS = ("wheel_fl", "wheel_fr", "wheel_rl", "wheel_rr")

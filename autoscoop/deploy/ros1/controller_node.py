@@ -16,7 +16,7 @@ import time
 from typing import Callable
 
 from autoscoop.deploy.controller import ControllerCore, payload_inputs
-from autoscoop.payload import pitch_from_quaternion
+from autoscoop.core.payload import pitch_from_quaternion
 from autoscoop.deploy.ros1 import import_rospy
 from autoscoop.deploy.safety import Command
 

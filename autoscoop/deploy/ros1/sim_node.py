@@ -27,7 +27,7 @@ import numpy as np
 
 from autoscoop.deploy.ros1 import import_rospy, publishers
 from autoscoop.deploy.sim_bridge import DelayLine, SensorReadings, SimBridge
-from autoscoop.evaluate import EpisodeResult
+from autoscoop.evaluation.evaluate import EpisodeResult
 
 NODE_NAME = "autoscoop_sim"
 SETTLE_S = 0.5

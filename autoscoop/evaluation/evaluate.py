@@ -15,12 +15,12 @@ from typing import Any, Callable
 import numpy as np
 from tqdm import tqdm
 
-from autoscoop import __version__
-from autoscoop.agents.base import Policy
-from autoscoop.config import ScoopConfig
+from autoscoop.core.version import __version__
+from autoscoop.core.policy import Policy
+from autoscoop.core.config import ScoopConfig
 from autoscoop.envs.scoop import make_scoop_env
-from autoscoop.recorder import EpisodeRecorder, record_name
-from autoscoop.statistics import outcome_statistics
+from autoscoop.evaluation.recorder import EpisodeRecorder, record_name
+from autoscoop.evaluation.summary import outcome_statistics
 
 
 @dataclass(frozen=True)
@@ -71,7 +71,7 @@ def evaluate(policy: Policy, config: ScoopConfig, episodes: int, seed: int = 0,
              records_meta: dict[str, Any] | None = None) -> list[EpisodeResult]:
     """Run ``episodes`` episodes with seeds ``seed, seed + 1, ...``; show a progress bar.
 
-    With ``records_dir``, each episode's record (``autoscoop.records``) is saved there as
+    With ``records_dir``, each episode's record (``autoscoop.envs.records``) is saved there as
     ``episode_SEED.npz``, with ``records_meta`` (and the policy's name) in its metadata.
     """
     env = make_scoop_env(config)

@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import math
 
-from autoscoop.config import RewardConfig
+from autoscoop.core.config import RewardConfig
 
 
 def is_penetrating(nearest_particle_m: float, config: RewardConfig) -> bool:

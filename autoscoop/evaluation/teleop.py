@@ -3,7 +3,7 @@
 :class:`TeleopKeys` turns key presses into the environment's actions and needs no display (tests
 use it directly); :func:`run_session` runs episodes in real time in a viewer (``mujoco.viewer``'s
 passive viewer, or any object with the same few methods) and saves each finished episode as an
-episode record (:mod:`autoscoop.records`), like evaluation does.
+episode record (:mod:`autoscoop.envs.records`), like evaluation does.
 
 A key press moves what the person asks for (forward speed, lift angle, tilt angle) by one step;
 the speed is held until changed, as on the real robot's remote control. Each control step sends the
@@ -22,7 +22,7 @@ from typing import Any, Callable, Protocol
 
 import numpy as np
 
-from autoscoop.state import CommandLimits, advance_targets
+from autoscoop.core.state import CommandLimits, advance_targets
 
 # GLFW key codes, which MuJoCo's viewer passes to its key callback.
 KEY_SPACE, KEY_ENTER = 32, 257
@@ -156,7 +156,7 @@ def run_session(env: Any, keys: TeleopKeys, viewer: Viewer, options: SessionOpti
     """Run manual episodes until the viewer closes (or ``options.episodes`` are done).
 
     Args:
-        env: an autoscoop environment wrapped in ``autoscoop.recorder.EpisodeRecorder``.
+        env: an autoscoop environment wrapped in ``autoscoop.evaluation.recorder.EpisodeRecorder``.
         keys: the key map the viewer's key callback feeds.
         viewer: the window (``mujoco.viewer.launch_passive(...)``).
         options: where to save, seeds, pace.

@@ -29,13 +29,14 @@ from typing import Any
 import mujoco
 import numpy as np
 
-from autoscoop import __version__, kinematics
-from autoscoop import payload as payload_mod
-from autoscoop.config import ScoopConfig
-from autoscoop.records import EpisodeRecord
+from autoscoop.core import kinematics
+from autoscoop.core.version import __version__
+from autoscoop.core import payload as payload_mod
+from autoscoop.core.config import ScoopConfig
+from autoscoop.envs.records import EpisodeRecord
 from autoscoop.sim.load_cell import ReadingWindow, instant_reading
 from autoscoop.sim.scene import ScoopSim
-from autoscoop.state import STATE_SIZE
+from autoscoop.core.state import STATE_SIZE
 
 HOLD_POSES_RAD: tuple[tuple[float, float], ...] = ((-0.10, -0.50), (0.0, -0.40), (-0.05, -0.30))
 """(lift, tilt) of the static holds: the carry pose (arm up, bucket fully curled) and two less curled."""

@@ -6,7 +6,7 @@ Jacobian of a point of the bucket, the gravity torques ``G`` of the known links,
 their calibration. It never imports the simulator; :mod:`autoscoop.sim.load_cell` feeds it the
 simulator's readings and the ROS node feeds it the robot's.
 
-Frames and signs (the same as :mod:`autoscoop.kinematics`, which holds every dimension):
+Frames and signs (the same as :mod:`autoscoop.core.kinematics`, which holds every dimension):
 
 * chassis frame: x forward from the chassis centre, z up from the ground, metres; the arm moves in
   this x-z plane. Gravity is taken along -z of this frame unless the chassis pitch is given
@@ -45,7 +45,7 @@ from typing import Any
 import numpy as np
 import yaml
 
-from autoscoop import kinematics
+from autoscoop.core import kinematics
 
 GRAVITY_MPS2 = 9.81
 """Standard gravity (MuJoCo's default), m/s^2."""

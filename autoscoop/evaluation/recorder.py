@@ -1,4 +1,4 @@
-"""Record each episode of an autoscoop environment in the episode-record format (:mod:`autoscoop.records`).
+"""Record each episode of an autoscoop environment in the episode-record format (:mod:`autoscoop.envs.records`).
 
 :class:`EpisodeRecorder` is a Gymnasium wrapper: wrap the environment, run episodes as usual, and
 :meth:`EpisodeRecorder.save` the one that just ended. Whoever drives the environment (evaluation, the
@@ -14,8 +14,8 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
-from autoscoop import __version__
-from autoscoop.records import EpisodeRecord
+from autoscoop.core.version import __version__
+from autoscoop.envs.records import EpisodeRecord
 
 
 def record_name(seed: int) -> str:

@@ -35,19 +35,19 @@ from typing import Any
 import numpy as np
 import torch
 import yaml
-from stable_baselines3 import DDPG, PPO, SAC, TD3
+from stable_baselines3 import DDPG, PPO, TD3
 from stable_baselines3.common.callbacks import BaseCallback
 from stable_baselines3.common.noise import NormalActionNoise, OrnsteinUhlenbeckActionNoise, VectorizedActionNoise
 from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv
 from tqdm import tqdm
 
-from autoscoop import __version__
+from autoscoop.core.version import __version__
+from autoscoop.agents.algorithms import ALGORITHMS
 from autoscoop.agents.demonstrations import add_scripted_demonstrations
 from autoscoop.agents.policy_files import PolicyFileError, actor_from_sb3, save_actor, sha256_of
-from autoscoop.config import ScoopConfig, from_dict, save_yaml
+from autoscoop.core.config import ScoopConfig, from_dict, save_yaml
 from autoscoop.envs.scoop import make_scoop_env
 
-ALGORITHMS = {"ddpg": DDPG, "td3": TD3, "sac": SAC, "ppo": PPO}
 CSV_FIELDS = ["episode", "reward", "fill_factor", "cycle_time_s", "success", "steps", "spilled", "physics_error",
               "wall_s"]
 
@@ -57,7 +57,7 @@ class TrainArgs:
     """Arguments of one training run."""
 
     algo: str = "ddpg"
-    """ddpg (the paper's), td3, sac or ppo; settings from autoscoop/hyperparams/ALGO.yaml."""
+    """ddpg (the paper's), td3, sac or ppo; settings from autoscoop/training/hyperparams/ALGO.yaml."""
     episodes: int = 800
     """training episodes (the paper: 800)."""
     seed: int = 0
@@ -88,10 +88,10 @@ class TrainArgs:
 
 
 def load_hyperparams(algo: str) -> dict[str, Any]:
-    """The algorithm's YAML from the package (``autoscoop/hyperparams/ALGO.yaml``)."""
+    """The algorithm's YAML from the package (``autoscoop/training/hyperparams/ALGO.yaml``)."""
     if algo not in ALGORITHMS:
         raise ValueError(f"--algo {algo!r} is not offered; choose one of {sorted(ALGORITHMS)}")
-    text = (resources.files("autoscoop") / "hyperparams" / f"{algo}.yaml").read_text()
+    text = (resources.files("autoscoop") / "training" / "hyperparams" / f"{algo}.yaml").read_text()
     return yaml.safe_load(text)
 
 
@@ -272,7 +272,7 @@ class PolicyEvaluator:
     def evaluate(self, model: Any, episode: int, logger: Any) -> float:
         """Run the evaluation; save the policy if it is the best so far; return its score."""
         from autoscoop.agents.loading import SB3Policy  # noqa: PLC0415 - loading imports this module lazily
-        from autoscoop.evaluate import run_episode  # noqa: PLC0415
+        from autoscoop.evaluation.evaluate import run_episode  # noqa: PLC0415
 
         policy = SB3Policy(model, name="training")
         results = [run_episode(self.env, policy, self.SEED + i) for i in range(self.episodes)]
@@ -497,7 +497,7 @@ def _run(run_dir: Path, config: ScoopConfig, spec: dict[str, Any], info: dict[st
     _write_run_json(run_dir, info)
     shutil.rmtree(run_dir / "checkpoint", ignore_errors=True)
     try:
-        from autoscoop.report.learning_curve import plot_learning_curve  # noqa: PLC0415
+        from autoscoop.training.learning_curve import plot_learning_curve  # noqa: PLC0415
 
         plot_learning_curve(run_dir / "episodes.csv", run_dir / "learning_curve.png")
     except ImportError:  # matplotlib missing: the CSV holds the same numbers

@@ -2,7 +2,7 @@
 
 The file maps the raw 12-number state (float32, ``state``) to the 3-number action in [-1, 1]
 (``action``); its input and output scaling are inside the graph. :class:`OnnxPolicy` offers the
-:class:`~autoscoop.agents.base.Policy` interface, so evaluation, the demo and the ROS controller run
+:class:`~autoscoop.core.policy.Policy` interface, so evaluation, the demo and the ROS controller run
 it like any other controller.
 """
 
@@ -12,7 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
-from autoscoop.state import ACTION_NAMES, ACTION_SIZE, STATE_NAMES, STATE_SIZE
+from autoscoop.core.state import ACTION_NAMES, ACTION_SIZE, STATE_NAMES, STATE_SIZE
 
 ONNX_FORMAT = "autoscoop-onnx-policy/1"
 """Value of the ``autoscoop_format`` metadata entry of an exported policy."""

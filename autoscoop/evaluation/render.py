@@ -13,8 +13,8 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
-from autoscoop.glbackend import INSTALL_HINT
-from autoscoop.phases import phase_now
+from autoscoop.sim.glbackend import INSTALL_HINT
+from autoscoop.core.phases import phase_now
 
 FRAME_SIZE = (768, 432)
 """Width and height of rendered frames, pixels (16:9, both multiples of 16 for video encoders)."""
@@ -131,7 +131,7 @@ def render_episode(policy: Any, config: Any, seed: int, fps: float = 16.0,
     """Run one episode of ``policy`` while filming it.
 
     Args:
-        policy: an ``autoscoop.agents.base.Policy``.
+        policy: an ``autoscoop.core.policy.Policy``.
         config: the ``ScoopConfig`` of the scene.
         seed: the episode's seed (the same seed as in ``autoscoop eval`` gives the same episode).
         fps: frames per simulated second, at least.
@@ -142,8 +142,8 @@ def render_episode(policy: Any, config: Any, seed: int, fps: float = 16.0,
         an ``EpisodeRecord``; its ``EpisodeResult``). The capture is closed.
     """
     from autoscoop.envs.scoop import make_scoop_env  # noqa: PLC0415 - keeps this module light to import
-    from autoscoop.evaluate import run_episode  # noqa: PLC0415
-    from autoscoop.recorder import EpisodeRecorder  # noqa: PLC0415
+    from autoscoop.evaluation.evaluate import run_episode  # noqa: PLC0415
+    from autoscoop.evaluation.recorder import EpisodeRecorder  # noqa: PLC0415
 
     capture = FrameCapture(make_scoop_env(config), fps=fps, size=size)
     recorder = EpisodeRecorder(capture, {"policy": policy.name, "source": "video"})

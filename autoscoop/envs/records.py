@@ -16,7 +16,7 @@ import numpy as np
 
 STEP_FIELDS: dict[str, str] = {
     "time_s": "time since the episode start at the end of the step, s",
-    "state": "the 12-number state after the step (autoscoop.state.STATE_NAMES)",
+    "state": "the 12-number state after the step (autoscoop.core.state.STATE_NAMES)",
     "action": "the action of the step, 3 numbers in [-1, 1] (drive, lift, tilt)",
     "reward": "reward of the step",
     "reward_progress": "P_t, paper eq. 5",

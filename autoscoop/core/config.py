@@ -16,7 +16,7 @@ from typing import Any, Mapping
 
 import yaml
 
-from autoscoop import kinematics
+from autoscoop.core import kinematics
 
 
 class ConfigError(ValueError):

@@ -31,10 +31,10 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from autoscoop import kinematics
+from autoscoop.core import kinematics
 
 if TYPE_CHECKING:
-    from autoscoop.config import RobotConfig
+    from autoscoop.core.config import RobotConfig
 
 STATE_NAMES = ("w", "tip_x", "tip_z", "joint_x", "joint_z", "d_pile", "v", "lift", "tilt", "dv", "dlift", "dtilt")
 STATE_UNITS = ("-", "m", "m", "m", "m", "m", "m/s", "rad", "rad", "m/s", "rad", "rad")

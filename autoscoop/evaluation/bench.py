@@ -19,9 +19,9 @@ from typing import Any
 import mujoco
 from tqdm import tqdm
 
-from autoscoop import __version__
+from autoscoop.core.version import __version__
 from autoscoop.agents.loading import heuristic_for
-from autoscoop.config import ScoopConfig
+from autoscoop.core.config import ScoopConfig
 from autoscoop.envs.scoop import make_scoop_env
 
 

@@ -1,6 +1,6 @@
 """Statistics over episodes, the way every report of autoscoop gives them: mean and standard deviation.
 
-One place for ``autoscoop eval``'s summary (from :class:`autoscoop.evaluate.EpisodeResult`) and for
+One place for ``autoscoop eval``'s summary (from :class:`autoscoop.evaluation.evaluate.EpisodeResult`) and for
 the reports built from episode records (their ``outcome`` metadata): both hand in mappings with the
 keys ``mass_kg``, ``particles``, ``fill_factor``, ``cycle_time_s`` (NaN or ``None`` when the
 episode did not succeed), ``success``, ``spilled`` and ``physics_error``.

@@ -1,0 +1,2 @@
+"""Measuring controllers: evaluation over seeds, summary statistics, episode recorder, video, speed
+and payload benchmarks, manual control."""

@@ -1,0 +1,1 @@
+"""Training runs: the algorithm's settings (``hyperparams/``), run directories, callbacks, checkpoints."""
