@@ -46,9 +46,7 @@ def fill_until_overflow(config: ScoopConfig | None = None, max_particles: int = 
     rng = np.random.default_rng(seed)
     mujoco.mj_resetData(m, d)
     tilt = HOLD_TILT_RAD
-    d.qpos[sim._root_qpos:sim._root_qpos + 7] = [-1.5, 0.0, kinematics.CHASSIS_CENTRE_HEIGHT_M, 1, 0, 0, 0]
-    d.qpos[sim._lift_qpos], d.qpos[sim._tilt_qpos] = HOLD_LIFT_RAD, tilt
-    d.act[sim._lift_act_state], d.act[sim._tilt_act_state] = HOLD_LIFT_RAD, tilt
+    sim.set_pose(-1.5, HOLD_LIFT_RAD, tilt)
     for i in range(max_particles):  # park every particle in a row far to the side
         sim.set_particle(i, np.array([2.0 + 0.1 * i, 3.0, config.pile.radius_m]))
     mujoco.mj_forward(m, d)
@@ -56,9 +54,7 @@ def fill_until_overflow(config: ScoopConfig | None = None, max_particles: int = 
     mouth = kinematics.BUCKET_INSIDE_POLYGON_M[1:3].mean(axis=0)
     counts, best, stale = [], 0, 0
     for i in range(max_particles):
-        origin = d.xpos[sim._bucket]
-        rotation = d.xmat[sim._bucket].reshape(3, 3)
-        above = origin + rotation @ np.array([mouth[0], 0.0, mouth[1]])
+        above = sim.bucket_to_world(np.array([mouth[0], 0.0, mouth[1]]))
         y = rng.uniform(-0.8, 0.8) * kinematics.BUCKET_INNER_HALF_WIDTH_M
         sim.set_particle(i, above + np.array([rng.uniform(-0.04, 0.04), y, DROP_HEIGHT_M]))
         mujoco.mj_step(m, d, nstep=int(SETTLE_PER_DROP_S / m.opt.timestep))

@@ -6,7 +6,7 @@ noise, and hands them to the estimator. The environment uses it when ``env.mass_
 
 The robot's load cell samples far faster than the 4 Hz control loop, and a controller sees its
 reading averaged over the control period. The sensor does the same: it averages the readings of
-every physics step since the previous estimate (through :attr:`ScoopSim.substep_callback`). That
+every physics step since the previous estimate (a substep observer of :class:`ScoopSim`). That
 matters: particles resting on the servo-held bucket rattle, and single readings swing by a kilogram
 or more around the right mean.
 """
@@ -67,7 +67,7 @@ class ReadingWindow:
         self.sim = sim
         self._sum = np.zeros(5)
         self._count = 0
-        sim.substep_callback = self._accumulate
+        sim.add_substep_observer(self._accumulate)
 
     def _accumulate(self) -> None:
         self._sum += instant_reading(self.sim).as_array()
@@ -82,10 +82,14 @@ class ReadingWindow:
         self._count = 0
         return LoadCellReading(*(float(v) for v in mean))
 
+    @property
+    def attached(self) -> bool:
+        """Whether the window is still averaging its sim's physics steps."""
+        return self._accumulate in self.sim.substep_observers
+
     def detach(self) -> None:
-        """Stop averaging (the sim steps in one C call again)."""
-        if self.sim.substep_callback == self._accumulate:
-            self.sim.substep_callback = None
+        """Stop averaging (with no other observer, the sim steps in one C call again)."""
+        self.sim.remove_substep_observer(self._accumulate)
 
 
 class TorqueMassSensor:
@@ -139,7 +143,7 @@ class TorqueMassSensor:
     def read(self, sim: ScoopSim) -> LoadCellReading:
         """The readings the estimate uses, noise included; the first call attaches the averaging window."""
         if self.average:
-            if self._window is None or self._window.sim is not sim or sim.substep_callback != self._window._accumulate:
+            if self._window is None or self._window.sim is not sim or not self._window.attached:
                 self._window = ReadingWindow(sim)
             clean = self._window.take()
         else:

@@ -144,8 +144,7 @@ class ScoopSim:
         self.time_origin_s = 0.0
         self._settled: dict[int, mujoco.MjData] = {}
         self.variant = 0
-        self.substep_callback: Callable[[], None] | None = None
-        """Called after every physics step when set (a load cell averaging its readings); steps then run one by one."""
+        self._substep_observers: list[Callable[[], None]] = []
 
     # ---------------------------------------------------------------- reset and stepping
     def reset(self, rng: np.random.Generator | None = None) -> None:
@@ -184,12 +183,7 @@ class ScoopSim:
         mujoco.mj_resetData(m, d)
         lift, tilt = cfg.robot.start_lift_rad, cfg.robot.start_tilt_rad
         tip_x_chassis = kinematics.arm_pose(lift, tilt).tip[0]
-        d.qpos[self._root_qpos:self._root_qpos + 7] = [-cfg.robot.start_gap_m - tip_x_chassis, 0.0,
-                                                       kinematics.CHASSIS_CENTRE_HEIGHT_M, 1, 0, 0, 0]
-        d.qpos[self._lift_qpos] = lift
-        d.qpos[self._tilt_qpos] = tilt
-        d.act[self._lift_act_state] = lift
-        d.act[self._tilt_act_state] = tilt
+        self.set_pose(-cfg.robot.start_gap_m - tip_x_chassis, lift, tilt)
         centres = pile_layout(self.pile_of_variant(variant), np.random.default_rng([variant, 20211]))
         for index, centre in enumerate(centres):
             self._place_particle(index, centre)
@@ -213,13 +207,46 @@ class ScoopSim:
         d.ctrl[self._tilt_act] = tilt_rate_radps
 
     def step(self, n_steps: int) -> None:
-        """Advance the physics by ``n_steps`` steps (in C, one call, unless :attr:`substep_callback` is set)."""
-        if self.substep_callback is None:
+        """Advance the physics by ``n_steps`` steps: in C, one call, unless substep observers are attached
+        (:meth:`add_substep_observer`), which are then called after every step, in the order they were added."""
+        if not self._substep_observers:
             mujoco.mj_step(self.model, self.data, nstep=n_steps)
             return
         for _ in range(n_steps):
             mujoco.mj_step(self.model, self.data)
-            self.substep_callback()
+            for observer in tuple(self._substep_observers):
+                observer()
+
+    # ---------------------------------------------------------------- pose and observers (public API)
+    def set_pose(self, chassis_x_m: float, lift_rad: float, tilt_rad: float) -> None:
+        """Place the robot: chassis upright on the ground with its centre at world x ``chassis_x_m`` (y = 0,
+        facing +x), arm at ``lift_rad`` and bucket at ``tilt_rad``, both servos holding those angles.
+
+        Writes positions only (velocities are left as they are); call ``mujoco.mj_forward`` or step
+        before reading derived quantities.
+        """
+        d = self.data
+        d.qpos[self._root_qpos:self._root_qpos + 7] = [chassis_x_m, 0.0, kinematics.CHASSIS_CENTRE_HEIGHT_M,
+                                                       1, 0, 0, 0]
+        d.qpos[self._lift_qpos] = lift_rad
+        d.qpos[self._tilt_qpos] = tilt_rad
+        d.act[self._lift_act_state] = lift_rad
+        d.act[self._tilt_act_state] = tilt_rad
+
+    def add_substep_observer(self, observer: Callable[[], None]) -> None:
+        """Call ``observer()`` after every physics step from now on (a load cell averaging its readings,
+        a recorder, a pacer). Several may be attached; while any is, :meth:`step` runs steps one by one."""
+        self._substep_observers.append(observer)
+
+    def remove_substep_observer(self, observer: Callable[[], None]) -> None:
+        """Stop calling ``observer`` (no error if it was not attached)."""
+        if observer in self._substep_observers:
+            self._substep_observers.remove(observer)
+
+    @property
+    def substep_observers(self) -> tuple[Callable[[], None], ...]:
+        """The observers attached now, in call order."""
+        return tuple(self._substep_observers)
 
     def instability_count(self) -> int:
         """How many times MuJoCo has flagged an instability (bad acceleration, full buffers) since reset."""
@@ -296,10 +323,20 @@ class ScoopSim:
         """Mass of each particle, (n,) kg."""
         return self._particle_mass
 
+    @property
+    def bucket_pose(self) -> tuple[np.ndarray, np.ndarray]:
+        """Bucket frame origin (the tilt joint) (3,) m and rotation matrix (3, 3) in the world frame;
+        bucket frame: x toward the cutting edge, y across, z toward the mouth."""
+        return self.data.xpos[self._bucket].copy(), self.data.xmat[self._bucket].reshape(3, 3).copy()
+
+    def bucket_to_world(self, point_bucket_m: np.ndarray) -> np.ndarray:
+        """A point given in the bucket frame, (3,) m, expressed in the world frame, (3,) m."""
+        origin, rotation = self.bucket_pose
+        return origin + rotation @ np.asarray(point_bucket_m, dtype=float)
+
     def particles_in_bucket_frame(self) -> np.ndarray:
         """Particle centres in the bucket frame (x to the cutting edge, y across, z toward the mouth), (n, 3) m."""
-        origin = self.data.xpos[self._bucket]
-        rotation = self.data.xmat[self._bucket].reshape(3, 3)
+        origin, rotation = self.bucket_pose
         return (self.particle_positions - origin) @ rotation
 
     def particles_in_bucket(self) -> np.ndarray:

@@ -1,0 +1,49 @@
+"""The one rollout loop: run a controller for one episode and return its :class:`EpisodeOutcome`.
+
+Evaluation, the recorder, the speed benchmark, scripted demonstrations, training's periodic
+evaluations, the tools and the benchmarks all run episodes through :func:`rollout`; whatever they
+need per step they get from an observer, not from a loop of their own.
+"""
+
+from __future__ import annotations
+
+from typing import Any, Callable, Iterable
+
+import numpy as np
+
+from autoscoop.core.policy import Policy
+from autoscoop.envs.outcome import EpisodeOutcome
+
+StepObserver = Callable[[int, np.ndarray, np.ndarray, float, dict], None]
+"""Called after each step with (step index, observation before the step, action, reward, info)."""
+
+
+def rollout(policy: Policy, env: Any, seed: int, observers: Iterable[StepObserver] = (),
+            options: dict[str, Any] | None = None) -> EpisodeOutcome:
+    """Run one episode of ``policy`` in ``env`` from ``seed``.
+
+    Args:
+        policy: the controller; reset before the episode.
+        env: a Gymnasium environment of autoscoop (``make_scoop_env``), possibly wrapped (a recorder).
+        seed: the episode's seed (``env.reset(seed=seed)``).
+        observers: called after every step, in order (see :data:`StepObserver`).
+        options: passed to ``env.reset``.
+
+    Returns:
+        The episode's outcome, from the last step's ``info``.
+    """
+    observers = tuple(observers)
+    obs, info = env.reset(seed=seed, options=options)
+    policy.reset()
+    total, steps = 0.0, 0
+    while True:
+        action = np.asarray(policy.act(obs))
+        next_obs, reward, terminated, truncated, info = env.step(action)
+        for observer in observers:
+            observer(steps, obs, action, float(reward), info)
+        obs = next_obs
+        total += float(reward)
+        steps += 1
+        if terminated or truncated:
+            break
+    return EpisodeOutcome.from_info(info, seed=seed, steps=steps, episode_return=total)
