@@ -6,8 +6,8 @@ import argparse
 import importlib
 import sys
 
-from autoscoop.core.version import __version__
 from autoscoop.core.config import ConfigError
+from autoscoop.core.version import __version__
 
 COMMANDS = [
     "autoscoop.commands.demo_cmd",

@@ -29,7 +29,7 @@ import tempfile
 import numpy as np
 
 
-def apply_options(model, options: list[str]) -> None:  # noqa: ANN001 - mujoco.MjModel
+def apply_options(model, options: list[str]) -> None:
     """Edit ``model.opt`` from ``key=value`` strings (solver, cone, integrator, disable, integers, floats)."""
     import mujoco  # noqa: PLC0415
 
@@ -56,6 +56,7 @@ def run(args: argparse.Namespace) -> dict:
     import autoscoop.sim.scene as scene  # noqa: PLC0415
     from autoscoop.agents.loading import heuristic_for  # noqa: PLC0415
     from autoscoop.core.config import ScoopConfig, parse_set_args  # noqa: PLC0415
+    from autoscoop.envs.rollout import rollout  # noqa: PLC0415
     from autoscoop.envs.scoop import make_scoop_env  # noqa: PLC0415
 
     if args.contact_time_constant:
@@ -72,19 +73,19 @@ def run(args: argparse.Namespace) -> dict:
     if os.environ.get("PHYSICS_VARIANTS_SETTLE_ONLY"):
         return {}
     fills, successes, cycles, errors, simulated = [], [], [], 0, 0.0
+    elapsed = {"s": 0.0}
+
+    def note_time(step: int, obs: np.ndarray, action: np.ndarray, reward: float, info: dict) -> None:
+        elapsed["s"] = info["elapsed_s"]
+
     for i in range(args.episodes):
-        obs, _ = env.reset(seed=args.seed + i)
-        controller.reset()
-        while True:
-            obs, _, terminated, truncated, info = env.step(controller.act(obs))
-            if terminated or truncated:
-                break
-        simulated += info["elapsed_s"]
-        fills.append(info["fill_factor"])
-        successes.append(info["success"])
-        errors += int(info["physics_error"])
-        if info["success"]:
-            cycles.append(info["cycle_time_s"])
+        outcome = rollout(controller, env, args.seed + i, observers=(note_time,))
+        simulated += elapsed["s"]
+        fills.append(outcome.fill_factor)
+        successes.append(outcome.success)
+        errors += int(outcome.physics_error)
+        if outcome.success:
+            cycles.append(outcome.cycle_time_s)
     return {"episodes": args.episodes, "seed": args.seed, "set": args.overrides, "option": args.option,
             "contact_time_constant_s": args.contact_time_constant,
             "fill_factor_mean": float(np.mean(fills)), "fill_factor_std": float(np.std(fills)),

@@ -22,8 +22,8 @@ from pathlib import Path
 from autoscoop.agents.loading import load_policy
 from autoscoop.core.config import ScoopConfig
 from autoscoop.deploy.ros1.master import RosMaster
-from autoscoop.evaluation.evaluate import evaluate, summarize
 from autoscoop.envs.records import load_record
+from autoscoop.evaluation.evaluate import evaluate, summarize
 
 NOISE = ["--joint-noise-rad", "0.002", "--speed-noise-mps", "0.002", "--range-noise-m", "0.003",
          "--torque-noise-nm", "0.2"]

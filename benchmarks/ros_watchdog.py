@@ -34,7 +34,7 @@ def measure(trials: int, estop_trials: int, seed: int = 0, log: Path | None = No
     rng = np.random.default_rng(seed)
     with RosMaster() as master:
         master.use_here()
-        out = open(log, "w") if log else subprocess.DEVNULL  # noqa: SIM115
+        out = open(log, "w") if log else subprocess.DEVNULL
         controller = subprocess.Popen([sys.executable, "-m", "autoscoop.cli", "ros", "controller", "--policy",
                                        "heuristic"], env=master.env, stdout=out, stderr=subprocess.STDOUT)
         try:

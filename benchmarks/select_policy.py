@@ -21,9 +21,9 @@ import numpy as np
 
 
 def score(candidate: str, angles: list[float], episodes: int, seed: int, overrides: dict | None = None) -> dict:
-    from autoscoop.agents.loading import load_policy
-    from autoscoop.core.config import ScoopConfig
-    from autoscoop.evaluation.evaluate import evaluate
+    from autoscoop.agents.loading import load_policy  # noqa: PLC0415 - in the worker process
+    from autoscoop.core.config import ScoopConfig  # noqa: PLC0415 - in the worker process
+    from autoscoop.evaluation.evaluate import evaluate  # noqa: PLC0415 - in the worker process
 
     row = {"policy": candidate, "piles": {}}
     for angle in angles:

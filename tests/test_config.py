@@ -1,5 +1,7 @@
 """Config: defaults, checked ranges with clear errors, YAML and --set overrides."""
 
+import re
+
 import gymnasium as gym
 import pytest
 
@@ -86,3 +88,60 @@ def test_a_yaml_file_overrides_only_the_keys_it_sets(tmp_path):
     (tmp_path / "bad.yaml").write_text("pile: 3\n")
     with pytest.raises(ConfigError, match="section 'pile' must be a mapping"):
         overrides_from_yaml(tmp_path / "bad.yaml")
+
+
+def test_the_physics_step_must_divide_the_control_period():
+    with pytest.raises(ConfigError, match=r"env\.control_period_s = 0\.25 s must be a whole number of env\.timestep_s = 0\.03"):
+        ScoopConfig().with_overrides({"env.timestep_s": 0.03})  # 8.33 steps, was 8 silently
+    with pytest.raises(ConfigError, match=r"env\.control_period_s.*env\.timestep_s"):
+        ScoopConfig().with_overrides({"env.control_period_s": 0.1})
+    assert ScoopConfig().with_overrides({"env.timestep_s": 0.025}).substeps == 10
+    assert ScoopConfig().substeps == 12
+    step = ScoopConfig().env.timestep_s
+    assert ScoopConfig().with_overrides({"env.control_period_s": 3 * step}).substeps == 3  # float products pass
+
+
+def test_ints_become_floats_and_the_checks_are_strict():
+    c = ScoopConfig().with_overrides({"pile.angle_deg": 28, "pile.angle_mix_deg": [25, 40], "reward.c_w": "5"})
+    assert type(c.pile.angle_deg) is float and type(c.reward.c_w) is float
+    assert c.pile.angle_mix_deg == (25.0, 40.0) and all(type(a) is float for a in c.pile.angle_mix_deg)
+    assert type(c.pile.n_particles) is int
+    for key, value, fragment in [("pile.angle_deg", True, "must be a number"), ("pile.n_particles", 3.0, "must be an integer"),
+                                 ("pile.rolling", 1, "is not allowed; choose one of [False, True]"),
+                                 ("pile.angle_mix_deg", 30, "must be a list of numbers, each in [15.0, 60.0] deg")]:
+        with pytest.raises(ConfigError, match=re.escape(f"{key} = {value!r} {fragment}")):
+            ScoopConfig().with_overrides({key: value})
+
+
+def test_sections_built_directly_or_replaced_are_checked_too():
+    from autoscoop.core.config import PileConfig, from_dict
+
+    c = ScoopConfig()
+    smaller = c.replace(pile=c.pile.replace(n_particles=40, variants=1))
+    assert (smaller.pile.n_particles, smaller.pile.variants, c.pile.n_particles) == (40, 1, 72)
+    assert smaller.robot == c.robot and smaller != c
+    with pytest.raises(ConfigError, match=re.escape("pile.angle_deg = 80.0 is out of range; allowed [15.0, 60.0] deg")):
+        c.pile.replace(angle_deg=80)
+    with pytest.raises(ConfigError, match=re.escape("pile.angle_deg = 80.0 is out of range")):
+        PileConfig(angle_deg=80)
+    with pytest.raises(ConfigError, match=re.escape("pile.n_particles = 0 is out of range; allowed [1, 400]")):
+        ScoopConfig(pile={"n_particles": 0})
+    with pytest.raises(ConfigError, match=r"env\.timestep_s"):
+        c.replace(env=c.env.replace(timestep_s=0.03))
+    with pytest.raises(ConfigError, match=re.escape("unknown config key(s) ['pile.angel_deg']; known in pile: ['angle_deg'")):
+        from_dict({"pile": {"angel_deg": 30}})
+    with pytest.raises(ConfigError, match=re.escape("unknown config section(s) ['piles']; known: ['robot', 'pile'")):
+        from_dict({"piles": {}})
+    assert from_dict({"pile": None, "env": {"max_episode_s": 6}}) == c.with_overrides({"env.max_episode_s": 6.0})
+
+
+def test_to_dict_and_describe_cover_every_key_and_the_yaml_round_trips(tmp_path):
+    c = ScoopConfig().with_overrides({"pile.angle_mix_deg": [25, 40], "env.mass_source": "torque"})
+    flat = [f"{section}.{key}" for section, values in c.to_dict().items() for key in values]
+    assert flat == all_keys()
+    assert c.to_dict()["pile"]["angle_mix_deg"] == [25.0, 40.0]
+    assert [row.split()[0] for row in c.describe().splitlines()] == all_keys()
+    assert "pile.angle_deg" in c.describe() and "[15.0, 60.0]" in c.describe() and "deg" in c.describe()
+    save_yaml(c, tmp_path / "c.yaml")
+    assert load_yaml(tmp_path / "c.yaml") == c
+    assert (c.max_episode_steps, c.substeps) == (32, 12)

@@ -8,10 +8,10 @@ import pytest
 from autoscoop.agents.loading import heuristic_for
 from autoscoop.cli import main
 from autoscoop.core.config import ScoopConfig
-from autoscoop.evaluation.evaluate import evaluate
-from autoscoop.sim.glbackend import choose_gl_backend, has_display
 from autoscoop.envs.records import load_record
+from autoscoop.evaluation.evaluate import evaluate
 from autoscoop.evaluation.recorder import record_name
+from autoscoop.sim.glbackend import choose_gl_backend, has_display
 
 needs_gl = pytest.mark.skipif(not (os.environ.get("MUJOCO_GL") or has_display(os.environ)),
                               reason="no display and no off-screen OpenGL (install libosmesa6)")

@@ -4,8 +4,12 @@ import pytest
 
 from autoscoop.cli import main
 from autoscoop.core.config import ConfigError
-from autoscoop.deploy.robot_config import (PotentiometerCalibration, RobotNodeConfig, load_robot_config,
-                                           robot_config_from_dict)
+from autoscoop.deploy.robot_config import (
+    PotentiometerCalibration,
+    RobotNodeConfig,
+    load_robot_config,
+    robot_config_from_dict,
+)
 
 
 def test_defaults_match_the_paper_and_the_environment():
@@ -91,3 +95,39 @@ def test_the_example_robot_config_is_valid_and_its_calibration_round_trips_throu
     sim = bridge.env.unwrapped.sim
     assert (core.lift_rad, core.tilt_rad) == pytest.approx((sim.lift_rad, sim.tilt_rad), abs=1e-9)
     bridge.close()
+
+
+def test_the_robot_config_is_built_on_the_shared_config_schema():
+    import ast
+    import inspect
+
+    from autoscoop.core.config import ConfigModel
+    from autoscoop.deploy import robot_config
+
+    sections = [robot_config.ControlSection, robot_config.LimitsSection, robot_config.SensorsSection,
+                robot_config.EstopSection, robot_config.PayloadSection, robot_config.TopicsSection,
+                robot_config.PotentiometerSection, PotentiometerCalibration, RobotNodeConfig]
+    assert all(issubclass(cls, ConfigModel) for cls in sections)
+    assert RobotNodeConfig.from_dict.__func__ is ConfigModel.from_dict.__func__
+    assert RobotNodeConfig.describe is ConfigModel.describe and RobotNodeConfig.to_dict is ConfigModel.to_dict
+    imported = [alias.name for node in ast.walk(ast.parse(inspect.getsource(robot_config)))
+                if isinstance(node, ast.ImportFrom) and node.module == "autoscoop.core.config" for alias in node.names]
+    assert imported and not [name for name in imported if name.startswith("_")]
+
+
+def test_robot_config_coerces_ints_keeps_null_sections_and_validates_replace():
+    c = robot_config_from_dict({"control": None, "potentiometer": None, "limits": {"max_speed_mps": 0}})
+    assert c.limits.max_speed_mps == 0.0 and type(c.limits.max_speed_mps) is float
+    assert c.control == RobotNodeConfig().control and c.lift_potentiometer is None and c.potentiometer("tilt") is None
+    with pytest.raises(ConfigError, match=r"limits\.lift_min_rad = 0\.32 must be below limits\.lift_max_rad"):
+        c.replace(limits=c.limits.replace(lift_min_rad=0.32))
+    with pytest.raises(ConfigError, match="control.input_timeout_s = 0.02 s is shorter than a tenth"):
+        c.replace(control=c.control.replace(input_timeout_s=0.02))
+    with pytest.raises(ConfigError, match=r"sensors\.lift_joint = 3 must be a string"):
+        robot_config_from_dict({"sensors": {"lift_joint": 3}})
+    with pytest.raises(ConfigError, match=r"potentiometer\.tilt\.raw = \[1\] must be a list of at least 2 numbers"):
+        robot_config_from_dict({"potentiometer": {"tilt": {"raw": [1], "rad": [0, 1]}}})
+    assert set(RobotNodeConfig().to_dict()) == {"control", "limits", "sensors", "estop", "payload", "topics",
+                                                 "potentiometer"}
+    keys = [row.split()[0] for row in RobotNodeConfig().describe().splitlines()]
+    assert "topics.cmd_vel" in keys and "potentiometer.lift" in keys and len(keys) == len(set(keys))

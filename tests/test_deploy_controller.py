@@ -226,6 +226,14 @@ def test_the_controller_scoops_the_simulated_pile_and_records_it(tmp_path):
     record = load_record(path)
     assert set(record.steps) == set(STEP_FIELDS) and len(record) >= 15
     assert record.meta["source"] == "ros controller" and record.meta["start"]["state"]
+    from dataclasses import fields
+
+    from autoscoop.envs.outcome import EpisodeOutcome
+
+    outcome = record.meta["outcome"]  # an EpisodeOutcome, plus the robot's own keys
+    assert {f.name for f in fields(EpisodeOutcome)} <= set(outcome) and outcome["seed"] == -1
+    assert outcome["steps"] == len(record) and math.isnan(outcome["particles"]) and outcome["cycle_time_s"] is None
+    assert {"autoscoop_version", "pile", "terminal_point_m", "config", "robot_config"} <= set(record.meta)
     a = record.arrays()
     assert np.all(np.isnan(a["tip_world_m"])) and np.all(np.isfinite(a["state"]))
     assert a["penetrating"].max() == 1.0  # judged from the range to the pile

@@ -6,8 +6,9 @@ import pytest
 from gymnasium.utils.env_checker import check_env
 
 import autoscoop  # noqa: F401
-from autoscoop.envs.scoop import ScoopEnv
 from autoscoop.core.state import STATE_NAMES
+from autoscoop.envs.scoop import ScoopEnv
+from autoscoop.sim.scene import WHEEL_RADIUS_M, WHEELS
 
 SMALL = {"pile.variants": 2}
 
@@ -64,7 +65,8 @@ def test_nan_action_is_refused_and_out_of_range_is_clipped():
     with pytest.raises(ValueError, match="3 numbers"):
         env.step(np.zeros(4))
     env.step(np.array([50.0, 0.0, 0.0]))
-    assert env._targets[0] == pytest.approx(env.config.robot.max_speed_mps)
+    wheel_speeds = env.sim.data.ctrl[[env.sim.model.actuator(w).id for w in WHEELS]] * WHEEL_RADIUS_M
+    assert wheel_speeds == pytest.approx([env.config.robot.max_speed_mps] * len(WHEELS))  # the speed target
 
 
 def test_instability_ends_the_episode_with_a_physics_error():

@@ -14,9 +14,9 @@ pytest.importorskip("onnx")
 
 from torch import nn  # noqa: E402
 
-from autoscoop.deploy.export import PARITY_TOLERANCE, check_parity, export_onnx, exportable_actor, random_states  # noqa: E402
 from autoscoop.agents.onnx_policy import OnnxPolicy  # noqa: E402
 from autoscoop.core.state import STATE_CENTRE, STATE_SCALE  # noqa: E402
+from autoscoop.deploy.export import PARITY_TOLERANCE, check_parity, export_onnx, exportable_actor, random_states  # noqa: E402
 
 
 class ScaledPaperActor(nn.Module):

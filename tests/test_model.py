@@ -51,8 +51,7 @@ def test_forward_kinematics_matches_mujoco_within_a_millimetre():
         lift = rng.uniform(*kinematics.LIFT_RANGE_RAD)
         tilt = rng.uniform(*kinematics.TILT_RANGE_RAD)
         mujoco.mj_resetData(m, d)
-        d.qpos[sim._root_qpos:sim._root_qpos + 7] = [0, 0, kinematics.CHASSIS_CENTRE_HEIGHT_M, 1, 0, 0, 0]
-        d.qpos[sim._lift_qpos], d.qpos[sim._tilt_qpos] = lift, tilt
+        sim.set_pose(0.0, lift, tilt)
         mujoco.mj_kinematics(m, d)
         pose = kinematics.arm_pose(lift, tilt)
         chassis = d.xpos[m.body("chassis").id]
@@ -98,7 +97,7 @@ def test_bucket_plates_in_the_model_are_the_generators_output():
 def test_particles_slide_without_turning_unless_rolling(rolling, dofs):
     config = ScoopConfig().with_overrides({"pile.rolling": rolling, "pile.n_particles": 24, "pile.variants": 1})
     sim = ScoopSim(config)
-    bodies = sim._particle_bodies
+    bodies = np.array([sim.model.body(f"particle_{i:03d}").id for i in range(sim.n_particles)])
     assert (sim.model.body_dofnum[bodies] == dofs).all()
     target = np.array([1.5, 2.0, 0.5])
     sim.set_particle(0, target)

@@ -189,7 +189,8 @@ def test_calibration_yaml_round_trip_and_errors(tmp_path):
     estimator = P.PayloadEstimator.from_yaml(path, method="eq4")
     assert estimator.calibration == calibration
     tau = synthetic_torques(0.0, -0.3, 0.0, 3.0, np.array([0.11, 0.02]), (0.1, -0.2))
-    assert estimator.mass_kg(0.0, -0.3, tau[0], tau[1]) == pytest.approx(3.0)
+    reading = P.PayloadReading(lift_rad=0.0, tilt_rad=-0.3, lift_torque_nm=tau[0], tilt_torque_nm=tau[1])
+    assert estimator.mass_kg(reading) == pytest.approx(3.0)
     (tmp_path / "bad.yaml").write_text("format: autoscoop-payload-calibration/1\nlever: 3\n")
     with pytest.raises(ValueError, match="unknown calibration key"):
         P.PayloadCalibration.load(tmp_path / "bad.yaml")
@@ -200,6 +201,28 @@ def test_calibration_yaml_round_trip_and_errors(tmp_path):
         P.PayloadCalibration(payload_com_in_bucket_m=(0.5, 0.0))
     with pytest.raises(ValueError, match="method"):
         P.PayloadEstimator(method="eq5")
+
+
+def test_reading_average_is_each_fields_sum_over_its_count():
+    average = P.ReadingAverage()
+    assert average.take() is None and all(np.isnan(average.latest.as_array()))
+    readings = [P.PayloadReading(0.1 * k, -0.3, -20.0 + 0.37 * k, -1.0 - 0.11 * k, 0.01 * k) for k in range(7)]
+    for r in readings:
+        average.add(r)
+    total = np.zeros(5)
+    for r in readings:
+        total += r.as_array()
+    assert average.take().as_array().tolist() == (total / len(readings)).tolist()  # bit for bit
+    assert average.take() is None and average.latest == readings[-1]
+    # fields arrive on their own (the ROS controller's messages): each is averaged over its own readings
+    average.add(P.PayloadReading(1.0, 2.0, 3.0, 4.0, 5.0), ("lift_torque_nm",))
+    average.add(P.PayloadReading(9.0, 9.0, 6.0, 8.0, 9.0), ("lift_torque_nm", "tilt_torque_nm"))
+    mean = average.take()
+    assert (mean.lift_torque_nm, mean.tilt_torque_nm) == (4.5, 8.0)
+    assert (mean.lift_rad, mean.chassis_pitch_rad) == (readings[-1].lift_rad, readings[-1].chassis_pitch_rad)
+    average.add(readings[0])
+    average.restart()
+    assert average.take() is None and average.latest == readings[0]
 
 
 def test_payload_module_does_not_import_the_simulator():

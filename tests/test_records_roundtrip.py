@@ -5,9 +5,10 @@ import pytest
 
 from autoscoop.agents.loading import heuristic_for
 from autoscoop.core.config import ScoopConfig
-from autoscoop.envs.scoop import make_scoop_env
-from autoscoop.evaluation.evaluate import evaluate, run_episode
 from autoscoop.envs.records import STEP_FIELDS, load_record
+from autoscoop.envs.rollout import rollout
+from autoscoop.envs.scoop import make_scoop_env
+from autoscoop.evaluation.evaluate import evaluate
 from autoscoop.evaluation.recorder import EpisodeRecorder, record_name
 
 SHORT = ScoopConfig().with_overrides({"env.max_episode_s": 1.5, "pile.variants": 1})
@@ -16,7 +17,7 @@ SHORT = ScoopConfig().with_overrides({"env.max_episode_s": 1.5, "pile.variants":
 @pytest.fixture(scope="module")
 def recorded(tmp_path_factory):
     env = EpisodeRecorder(make_scoop_env(SHORT), {"policy": "heuristic", "source": "test"})
-    result = run_episode(env, heuristic_for(SHORT), seed=3)
+    result = rollout(heuristic_for(SHORT), env, seed=3)
     path = env.save(tmp_path_factory.mktemp("records") / "one.npz")
     return env.record, result, path
 

@@ -6,8 +6,8 @@ import pytest
 from autoscoop.agents.loading import heuristic_for
 from autoscoop.cli import main
 from autoscoop.core.config import ScoopConfig
-from autoscoop.evaluation.evaluate import evaluate, summarize
 from autoscoop.core.phases import phase_now, phase_spans
+from autoscoop.evaluation.evaluate import evaluate, summarize
 from autoscoop.report.data import group_episodes, load_episodes, summarize_episodes
 from autoscoop.report.figures import plot_bucket_torque, plot_by_angle, plot_cycle
 from autoscoop.report.markdown import results_table, write_report

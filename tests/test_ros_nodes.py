@@ -18,12 +18,12 @@ from autoscoop.deploy.ros1 import INSTALL_HINT, ros_available
 if not ros_available():
     pytest.skip(f"ROS 1 is not available here: {INSTALL_HINT}", allow_module_level=True)
 
-from autoscoop.deploy.robot_config import RobotNodeConfig  # noqa: E402
-from autoscoop.deploy.ros1 import import_rospy  # noqa: E402
-from autoscoop.deploy.ros1.master import RosMaster  # noqa: E402
-from autoscoop.deploy.ros1.probe import RobotProbe, estop_trial, latency_summary, watchdog_trial  # noqa: E402
-from autoscoop.evaluation.evaluate import summarize  # noqa: E402
-from autoscoop.envs.records import load_record  # noqa: E402
+from autoscoop.deploy.robot_config import RobotNodeConfig
+from autoscoop.deploy.ros1 import import_rospy
+from autoscoop.deploy.ros1.master import RosMaster
+from autoscoop.deploy.ros1.probe import RobotProbe, estop_trial, latency_summary, watchdog_trial
+from autoscoop.envs.records import load_record
+from autoscoop.evaluation.evaluate import summarize
 
 pytestmark = pytest.mark.filterwarnings("ignore:notifyAll:DeprecationWarning")  # inside Debian's rospy
 

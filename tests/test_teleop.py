@@ -6,13 +6,27 @@ import numpy as np
 import pytest
 
 from autoscoop.core.config import ScoopConfig
-from autoscoop.envs.scoop import make_scoop_env
-from autoscoop.envs.records import load_record
-from autoscoop.evaluation.recorder import EpisodeRecorder
 from autoscoop.core.state import CommandLimits
-from autoscoop.evaluation.teleop import (BINDINGS, KEY_DOWN, KEY_ENTER, KEY_KP_8, KEY_LEFT, KEY_PAGE_DOWN, KEY_PAGE_UP,
-                              KEY_RIGHT, KEY_SPACE, KEY_UP, SessionOptions, TeleopKeys, TeleopSteps, help_lines,
-                              run_session)
+from autoscoop.envs.records import load_record
+from autoscoop.envs.scoop import make_scoop_env
+from autoscoop.evaluation.recorder import EpisodeRecorder
+from autoscoop.evaluation.teleop import (
+    BINDINGS,
+    KEY_DOWN,
+    KEY_ENTER,
+    KEY_KP_8,
+    KEY_LEFT,
+    KEY_PAGE_DOWN,
+    KEY_PAGE_UP,
+    KEY_RIGHT,
+    KEY_SPACE,
+    KEY_UP,
+    SessionOptions,
+    TeleopKeys,
+    TeleopSteps,
+    help_lines,
+    run_session,
+)
 
 LIMITS = CommandLimits()
 SPAN = LIMITS.high - LIMITS.low  # 0.2 m/s, 0.42 rad, 1.4 rad

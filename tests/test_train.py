@@ -92,16 +92,17 @@ def test_resume_continues_steps_and_keeps_the_replay_buffer(tmp_path, monkeypatc
     from stable_baselines3 import DDPG
 
     from autoscoop.training import run as train_mod
+    from autoscoop.training.callbacks import EpisodeLogger
 
     out = tmp_path / "run"
-    original = train_mod.EpisodeLogger._end_episode
+    original = EpisodeLogger.end_episode
 
     def crash_after_five(self, env_index, info):
         original(self, env_index, info)
         if self.done == 5:
             raise KeyboardInterrupt("simulated crash")
 
-    monkeypatch.setattr(train_mod.EpisodeLogger, "_end_episode", crash_after_five)
+    monkeypatch.setattr(EpisodeLogger, "end_episode", crash_after_five)
     with pytest.raises(KeyboardInterrupt):
         train_mod.train(train_mod.TrainArgs(episodes=8, checkpoint_every=4, out=out, progress=False,
                                             overrides={"pile.variants": 2}, eval_every=5, eval_episodes=1))
@@ -112,7 +113,7 @@ def test_resume_continues_steps_and_keeps_the_replay_buffer(tmp_path, monkeypatc
     buffer_at_checkpoint = saved.replay_buffer.size()
     assert buffer_at_checkpoint == state["num_timesteps"] > 0
 
-    monkeypatch.setattr(train_mod.EpisodeLogger, "_end_episode", original)
+    monkeypatch.setattr(EpisodeLogger, "end_episode", original)
     seen = {}
     original_learn = DDPG.learn
 

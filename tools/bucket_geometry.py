@@ -1,6 +1,6 @@
 """Print the bucket's collision plates for ``autoscoop/assets/loader.xml``.
 
-The bucket's inner outline is the paper's quadrilateral (SPEC.md): tilt joint J, point A 0.124 m
+The bucket's inner outline is the paper's quadrilateral (docs/definitions.md): tilt joint J, point A 0.124 m
 from J at +46 deg, cutting edge (tip) 0.215 m from J at 0 deg, point B 0.10 m from J at -41 deg,
 angles measured from the J->tip line. Frame: the bucket body frame, x along J->tip, z toward A,
 y across the bucket. The outline and the inner width are read from ``autoscoop.core.kinematics`` (the

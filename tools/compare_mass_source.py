@@ -23,6 +23,7 @@ import numpy as np
 
 from autoscoop.agents.loading import load_policy
 from autoscoop.core.config import ScoopConfig, parse_set_args
+from autoscoop.envs.rollout import rollout
 from autoscoop.envs.scoop import make_scoop_env
 
 ACCEPTANCE_POINTS = 5.0
@@ -34,19 +35,18 @@ def run(policy_spec: str, config: ScoopConfig, episodes: int, seed: int, trust: 
     env = make_scoop_env(config)
     rated = config.reward.rated_load_kg
     fills, w_errors, w_errors_last = [], [], []
+
+    def w_error(step: int, obs: np.ndarray, action: np.ndarray, reward: float, next_obs: np.ndarray,
+                terminated: bool, truncated: bool, info: dict) -> None:
+        if info["physics_error"]:
+            return
+        w_errors.append(float(next_obs[0]) * rated - info["mass_in_bucket_kg"])
+        if terminated or truncated:
+            w_errors_last.append(w_errors[-1])
+
     try:
         for i in range(episodes):
-            obs, _ = env.reset(seed=seed + i)
-            policy.reset()
-            while True:
-                obs, _, terminated, truncated, info = env.step(policy.act(obs))
-                if info["physics_error"]:
-                    break
-                w_errors.append(float(obs[0]) * rated - info["mass_in_bucket_kg"])
-                if terminated or truncated:
-                    w_errors_last.append(w_errors[-1])
-                    break
-            fills.append(float(info["fill_factor"]))
+            fills.append(rollout(policy, env, seed + i, transition_observers=(w_error,)).fill_factor)
     finally:
         env.close()
     return {"fill_factor_mean": float(np.mean(fills)), "fill_factor_std": float(np.std(fills)),

@@ -36,6 +36,7 @@ def main() -> int:
     import autoscoop.sim.scene as scene  # noqa: PLC0415
     from autoscoop.agents.loading import heuristic_for  # noqa: PLC0415
     from autoscoop.core.config import ScoopConfig, parse_set_args  # noqa: PLC0415
+    from autoscoop.envs.rollout import rollout  # noqa: PLC0415
     from autoscoop.envs.scoop import make_scoop_env  # noqa: PLC0415
 
     if args.contact_time_constant:
@@ -49,17 +50,16 @@ def main() -> int:
     pitch_dof = sim.model.joint("root").dofadr[0] + 4  # angular velocity about the chassis y axis
     tip_p2p, pitch_rms = [], []
     for episode in range(args.seed, args.seed + args.episodes):
-        obs, _ = env.reset(seed=episode)
-        controller.reset()
-        while True:
-            obs, _, terminated, truncated, _ = env.step(controller.act(obs))
-            if terminated or truncated:
-                break
+        rollout(controller, env, episode)
         samples: list[tuple[float, float]] = []
+
+        def sample(samples: list[tuple[float, float]] = samples) -> None:
+            samples.append((sim.tip_world[2], sim.data.qvel[pitch_dof]))
+
         sim.command(0.0, 0.0, 0.0)
-        sim.substep_callback = lambda: samples.append((sim.tip_world[2], sim.data.qvel[pitch_dof]))
+        sim.add_substep_observer(sample)
         sim.step(int(round(args.hold_s / sim.model.opt.timestep)))
-        sim.substep_callback = None
+        sim.remove_substep_observer(sample)
         last = np.array(samples[-int(round(1.0 / sim.model.opt.timestep)):])
         tip_p2p.append(1000.0 * float(np.ptp(last[:, 0])))
         pitch_rms.append(float(np.sqrt(np.mean(last[:, 1] ** 2))))

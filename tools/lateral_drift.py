@@ -16,6 +16,7 @@ import numpy as np
 
 from autoscoop.agents.loading import load_policy
 from autoscoop.core.config import ScoopConfig, parse_set_args
+from autoscoop.envs.rollout import rollout
 from autoscoop.envs.scoop import make_scoop_env
 
 
@@ -32,21 +33,20 @@ def main() -> int:
     policy = load_policy(args.policy, config)
     terminal = np.array([config.reward.terminal_dx_m, 0.0, config.reward.terminal_z_m])
     largest, planar, spatial = [], 0, 0
+    episode = {"y": 0.0, "planar": False, "3d": False}
+
+    def watch_tip(step: int, obs: np.ndarray, action: np.ndarray, reward: float, info: dict) -> None:
+        offset = sim.tip_world - terminal
+        episode["y"] = max(episode["y"], abs(offset[1]))
+        episode["planar"] |= bool(np.hypot(offset[0], offset[2]) <= config.reward.epsilon_m)
+        episode["3d"] |= bool(np.linalg.norm(offset) <= config.reward.epsilon_m)
+
     for seed in range(args.seed, args.seed + args.episodes):
-        obs, _ = env.reset(seed=seed)
-        policy.reset()
-        y, reached_planar, reached_3d = 0.0, False, False
-        while True:
-            obs, _, terminated, truncated, _ = env.step(policy.act(obs))
-            offset = sim.tip_world - terminal
-            y = max(y, abs(offset[1]))
-            reached_planar |= bool(np.hypot(offset[0], offset[2]) <= config.reward.epsilon_m)
-            reached_3d |= bool(np.linalg.norm(offset) <= config.reward.epsilon_m)
-            if terminated or truncated:
-                break
-        largest.append(y)
-        planar += reached_planar
-        spatial += reached_3d
+        episode.update(y=0.0, planar=False, **{"3d": False})
+        rollout(policy, env, seed, observers=(watch_tip,))
+        largest.append(episode["y"])
+        planar += episode["planar"]
+        spatial += episode["3d"]
     largest = np.array(largest)
     print(f"{args.policy}, {args.episodes} episodes from seed {args.seed}, pile {config.pile.angle_deg:g} deg: "
           f"largest |y| of the tip per episode mean {largest.mean() * 100:.1f} cm, p90 "

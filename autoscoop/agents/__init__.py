@@ -1,6 +1,6 @@
 """Controllers: the scripted baseline and (with the train extra) the paper's DDPG policy."""
 
-from autoscoop.core.policy import Policy
 from autoscoop.agents.heuristic import HeuristicParams, HeuristicScooper
+from autoscoop.core.policy import Policy
 
 __all__ = ["HeuristicParams", "HeuristicScooper", "Policy"]

@@ -13,6 +13,8 @@ import numpy as np
 
 from autoscoop.agents.loading import heuristic_for
 from autoscoop.core.config import ScoopConfig
+from autoscoop.core.policy import Policy
+from autoscoop.envs.rollout import rollout
 from autoscoop.envs.scoop import make_scoop_env
 
 DEMONSTRATION_SEED = 900_000
@@ -36,28 +38,40 @@ def add_scripted_demonstrations(replay_buffer: Any, config: ScoopConfig, episode
     if episodes < 0:
         raise ValueError(f"demonstration episodes = {episodes}; must be >= 0")
     env = make_scoop_env(config)
-    controller = heuristic_for(config)
+    controller = _ClippedFloat32(heuristic_for(config))
     pending: list[tuple[np.ndarray, np.ndarray, np.ndarray, float, bool]] = []
     added = 0
     n_envs = replay_buffer.n_envs
+
+    def collect(step: int, obs: np.ndarray, action: np.ndarray, reward: float, next_obs: np.ndarray,
+                terminated: bool, truncated: bool, info: dict[str, Any]) -> None:
+        nonlocal pending, added
+        pending.append((obs, next_obs, action, reward, terminated))
+        if len(pending) == n_envs:
+            _add(replay_buffer, pending)
+            added += n_envs
+            pending = []
+
     try:
         for episode in range(episodes):
-            obs, _ = env.reset(seed=seed + episode)
-            controller.reset()
-            while True:
-                action = np.clip(controller.act(obs), -1.0, 1.0).astype(np.float32)
-                next_obs, reward, terminated, truncated, _ = env.step(action)
-                pending.append((obs, next_obs, action, float(reward), bool(terminated)))
-                obs = next_obs
-                if len(pending) == n_envs:
-                    _add(replay_buffer, pending)
-                    added += n_envs
-                    pending = []
-                if terminated or truncated:
-                    break
+            rollout(controller, env, seed + episode, transition_observers=(collect,))
     finally:
         env.close()
     return added
+
+
+class _ClippedFloat32:
+    """The controller's actions clipped to [-1, 1] as float32: the actions the replay buffer stores."""
+
+    def __init__(self, policy: Policy) -> None:
+        self.policy = policy
+        self.name = policy.name
+
+    def reset(self) -> None:
+        self.policy.reset()
+
+    def act(self, observation: np.ndarray) -> np.ndarray:
+        return np.clip(self.policy.act(observation), -1.0, 1.0).astype(np.float32)
 
 
 def _add(replay_buffer: Any, transitions: list[tuple[np.ndarray, np.ndarray, np.ndarray, float, bool]]) -> None:

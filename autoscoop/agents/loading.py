@@ -6,9 +6,9 @@ import json
 from importlib import resources
 from pathlib import Path
 
-from autoscoop.core.policy import Policy
 from autoscoop.agents.heuristic import HeuristicParams, HeuristicScooper
 from autoscoop.core.config import ScoopConfig
+from autoscoop.core.policy import Policy
 from autoscoop.core.state import CommandLimits
 
 DEFAULT_POLICY = "default"
@@ -102,7 +102,7 @@ class SB3Policy:
     def reset(self) -> None:
         """SB3 policies here are stateless."""
 
-    def act(self, observation):  # noqa: ANN001, ANN201 - numpy in, numpy out
+    def act(self, observation):
         action, _ = self.model.predict(observation, deterministic=True)
         return action
 

@@ -9,7 +9,7 @@ a saved actor carries its input scaling.
 
 from __future__ import annotations
 
-from typing import Sequence
+from collections.abc import Sequence
 
 import torch
 from torch import nn

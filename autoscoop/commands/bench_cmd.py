@@ -8,8 +8,8 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from autoscoop.evaluation.bench import run_bench
 from autoscoop.commands import add_config_args, config_from_args, write_json
+from autoscoop.evaluation.bench import run_bench
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:

@@ -16,7 +16,7 @@ import shlex
 import time
 from pathlib import Path
 
-from autoscoop.agents.loading import PolicyError, load_policy
+from autoscoop.agents.loading import load_policy
 from autoscoop.commands import add_config_args, config_from_args, write_json
 from autoscoop.evaluation.evaluate import evaluate, format_table, summarize
 
@@ -29,8 +29,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     parser = subparsers.add_parser("compare", help="compare controllers on three pile angles (Table 2, Fig. 13)",
                                    description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--policies", nargs="+", default=["default", "heuristic"],
-                        help="controllers to evaluate (default: default heuristic); "
-                             "'default' is skipped with a note while no shipped policy exists")
+                        help="controllers to evaluate (default: default heuristic)")
     parser.add_argument("--angles", nargs="+", type=float, default=list(PILE_ANGLES_DEG),
                         help="pile angles, degrees (default 25 32 40)")
     parser.add_argument("--episodes", type=int, default=100, help="episodes per controller and pile (default 100)")
@@ -58,14 +57,7 @@ def run(args: argparse.Namespace) -> int:
     for spec in args.policies:
         for angle in args.angles:
             config = base.with_overrides({"pile.angle_deg": angle})
-            try:
-                policy = load_policy(spec, config, trust=args.trust)
-            except PolicyError as error:
-                if spec != "default":
-                    raise
-                # Until the shipped policy lands in autoscoop.agents.loading; delete this branch then.
-                print(f"note: skipping 'default' (no shipped policy yet: {error})")
-                break
+            policy = load_policy(spec, config, trust=args.trust)
             folder = args.out / "records" / slug(spec) / f"{angle:g}deg"
             for old in folder.glob("episode_*.npz"):  # a previous run's extra episodes would join the table
                 old.unlink()
@@ -75,10 +67,7 @@ def run(args: argparse.Namespace) -> int:
             print(format_table(summary) + "\n")
             summaries.append({k: v for k, v in summary.items() if k != "config"})
             record_dirs.append(folder)
-        else:
-            evaluated.append(spec)
-    if not record_dirs:
-        raise SystemExit("nothing to compare: no controller could be loaded")
+        evaluated.append(spec)
 
     manual_files = find_record_files(manual) if manual else []
     episodes = load_episodes([*record_dirs, *manual_files])

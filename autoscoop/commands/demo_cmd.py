@@ -12,10 +12,10 @@ import argparse
 import time
 from pathlib import Path
 
-from autoscoop.core.policy import Policy
 from autoscoop.agents.loading import load_policy
 from autoscoop.commands import add_config_args, config_from_args, write_json
 from autoscoop.core.config import ScoopConfig
+from autoscoop.core.policy import Policy
 from autoscoop.evaluation.evaluate import evaluate, format_table, summarize
 
 DEFAULT_OUT = Path("out/demo")

@@ -60,7 +60,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 _CONTROLLER_DOC = """Run a policy on the robot through ROS 1.
 
 Subscribes: joint_states (sensor_msgs/JointState: lift, tilt), odom (nav_msgs/Odometry), pile_range
-(sensor_msgs/Range), bucket_torque and lift_torque (std_msgs/Float64, N*m: the payload mass by eq. 8;
+(sensor_msgs/Range), bucket_torque (the tilt joint's torque) and lift_torque (std_msgs/Float64, N*m: the
+payload mass by eq. 8;
 payload.method: eq4 needs bucket_torque only, payload.source: topic reads payload_mass in kg instead),
 estop (std_msgs/Bool), scoop (std_msgs/Bool: true starts a scoop, false ends it). Publishes: cmd_vel
 (geometry_msgs/Twist), lift_controller/command and tilt_controller/command (std_msgs/Float64, rad),
@@ -83,7 +84,7 @@ def _check_remaps(remaps: list[str]) -> None:
         raise SystemExit(f"unexpected argument(s) {bad}: only ROS remappings NAME:=NEW may follow the options")
 
 
-def build_controller(args: argparse.Namespace):  # noqa: ANN201 - ControllerCore, imported lazily
+def build_controller(args: argparse.Namespace):
     """The checked controller core from the command line (no ROS needed)."""
     from autoscoop.agents.loading import load_policy  # noqa: PLC0415
     from autoscoop.deploy.controller import ControllerCore  # noqa: PLC0415
@@ -109,9 +110,9 @@ def run_controller(args: argparse.Namespace) -> int:
     from autoscoop.deploy.ros1 import RosUnavailable  # noqa: PLC0415
 
     try:
-        from autoscoop.deploy.ros1.controller_node import run_controller_node  # noqa: PLC0415
+        from autoscoop.deploy.ros1.controller_node import ControllerNode  # noqa: PLC0415
 
-        return run_controller_node(core)
+        return ControllerNode(core).spin()
     except RosUnavailable as error:
         print(f"autoscoop ros controller: error: {error}")
         return 2
@@ -133,10 +134,10 @@ def run_sim(args: argparse.Namespace) -> int:
                         torque_nm=args.torque_noise_nm)
     bridge = SimBridge(config, noise, load_robot_config(args.robot_config), seed=args.seed)
     try:
-        from autoscoop.deploy.ros1.sim_node import run_sim_node  # noqa: PLC0415
+        from autoscoop.deploy.ros1.sim_node import SimNode  # noqa: PLC0415
 
-        results, stats = run_sim_node(bridge, args.episodes, seed=args.seed, delay_s=args.delay_s,
-                                      wait_for_controller_s=args.wait_s)
+        results, stats = SimNode(bridge, delay_s=args.delay_s).run(args.episodes, seed=args.seed,
+                                                                    wait_for_controller_s=args.wait_s)
         label = args.label or stats.controller_policy or "ros controller"
     except RosUnavailable as error:
         print(f"autoscoop ros sim: error: {error}")

@@ -35,11 +35,11 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 def run(args: argparse.Namespace) -> int:
     if not 0.05 <= args.speed <= 4.0:
         raise SystemExit(f"--speed must be in [0.05, 4], got {args.speed}")
-    from autoscoop.envs.scoop import make_scoop_env  # noqa: PLC0415
-    from autoscoop.sim.glbackend import has_display  # noqa: PLC0415
-    from autoscoop.evaluation.recorder import EpisodeRecorder  # noqa: PLC0415
     from autoscoop.core.state import CommandLimits  # noqa: PLC0415
+    from autoscoop.envs.scoop import make_scoop_env  # noqa: PLC0415
+    from autoscoop.evaluation.recorder import EpisodeRecorder  # noqa: PLC0415
     from autoscoop.evaluation.teleop import SessionOptions, TeleopKeys, help_lines, run_session  # noqa: PLC0415
+    from autoscoop.sim.glbackend import has_display  # noqa: PLC0415
 
     if not has_display(os.environ):
         raise SystemExit("autoscoop teleop needs a display (no DISPLAY or WAYLAND_DISPLAY is set)")

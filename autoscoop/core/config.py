@@ -1,210 +1,371 @@
-"""Configuration: frozen dataclasses with defaults, units and checked ranges; YAML in and out.
+"""Configuration: frozen pydantic models with defaults, units and checked ranges; YAML in and out.
 
-Every field declares its unit, its allowed range (or choices) and a one-line description in its
-metadata. Values are checked when a config is built, so a bad value fails at once with a message
-naming the dotted key (``pile.angle_deg``) and the allowed range. Overrides use dotted keys, as on
-the command line: ``--set pile.angle_deg=28``.
+Every field is declared with :func:`setting`: its default, its unit, its allowed range (or, through
+its type, its choices) and a one-line description. Values are checked when a config is built, so a
+bad value fails at once with a :class:`ConfigError` naming the dotted key (``pile.angle_deg``) and
+what is allowed. Overrides use dotted keys, as on the command line: ``--set pile.angle_deg=28``.
+
+:class:`ConfigModel` is the one schema mechanism of the package: the task config here and the
+robot node's config (:mod:`autoscoop.deploy.robot_config`) are both built from it.
 """
 
 from __future__ import annotations
 
-import dataclasses
 import math
-from dataclasses import dataclass, field
+import types
+import typing
+from collections.abc import Mapping
 from pathlib import Path
-from typing import Any, Mapping
+from typing import Any, ClassVar, Literal, Self
 
 import yaml
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
+from pydantic.fields import FieldInfo
 
 from autoscoop.core import kinematics
 
 
 class ConfigError(ValueError):
-    """A configuration key or value is not allowed; the message names the key and the range."""
+    """A configuration key or value is not allowed; the message names the dotted key and what is allowed.
+
+    Attributes:
+        details: pydantic's error records behind the message (locations relative to the model that
+            was built), empty for a check written by hand.
+    """
+
+    def __init__(self, message: str, details: list[dict[str, Any]] | None = None) -> None:
+        super().__init__(message)
+        self.details = details or []
 
 
-def _field(default: Any, unit: str, doc: str, low: float | None = None, high: float | None = None,
-           choices: tuple | None = None) -> Any:
-    return field(default=default, metadata={"unit": unit, "doc": doc, "low": low, "high": high,
-                                            "choices": choices})
+def setting(default: Any, unit: str, doc: str, low: float | None = None, high: float | None = None,
+            **field: Any) -> Any:
+    """A config field: default, unit (``-`` for none), one-line meaning and, for numbers, the range [low, high].
+
+    Numbers and booleans are strict (an int is taken for a float and becomes a float; a string, or a
+    bool for a number, is refused), floats must be finite. Choices are given by the field's type
+    (``Literal[...]`` or ``bool``); a tuple's item range by its item type. ``field`` goes to
+    :func:`pydantic.Field` (e.g. ``min_length``).
+    """
+    kind = type(default)
+    checks: dict[str, Any] = {"strict": True} if kind in (bool, int, float) else {}
+    if kind in (int, float):
+        checks.update({"ge": low, "le": high})
+    if kind is float:
+        checks["allow_inf_nan"] = False
+    return Field(default, description=doc, json_schema_extra={"unit": unit, "low": low, "high": high},
+                 **checks, **field)
 
 
-class _Section:
-    """Mixin: validate every field against its metadata after construction."""
-
-    _section: str = ""
-
-    def __post_init__(self) -> None:
-        for f in dataclasses.fields(self):
-            _check(f"{self._section}.{f.name}", getattr(self, f.name), f)
+def numbers(low: float | None = None, high: float | None = None) -> Any:
+    """Type of a list of finite numbers, each in [low, high] (written and held as a tuple of floats)."""
+    return tuple[typing.Annotated[float, Field(strict=True, allow_inf_nan=False, ge=low, le=high)], ...]
 
 
-def _check(key: str, value: Any, f: dataclasses.Field) -> None:
-    meta = f.metadata
-    if meta.get("choices") is not None:
-        if value not in meta["choices"]:
-            raise ConfigError(f"{key} = {value!r} is not allowed; choose one of {list(meta['choices'])}")
-        return
-    expected = type(f.default)
-    if expected is tuple:
-        if not isinstance(value, tuple) or not all(isinstance(v, (int, float)) and not isinstance(v, bool)
-                                                   and math.isfinite(v) for v in value):
-            raise ConfigError(f"{key} = {value!r} must be a list of numbers, each in [{meta['low']}, {meta['high']}] {meta['unit']}")
-        for item in value:
-            if not meta["low"] <= item <= meta["high"]:
-                raise ConfigError(f"{key} holds {item!r}, out of range; allowed [{meta['low']}, {meta['high']}] {meta['unit']}")
-        return
-    if expected is int and (isinstance(value, bool) or not isinstance(value, int)):
-        raise ConfigError(f"{key} = {value!r} must be an integer in [{meta['low']}, {meta['high']}]")
-    if expected is float:
-        if isinstance(value, bool) or not isinstance(value, (int, float)):
-            raise ConfigError(f"{key} = {value!r} must be a number in [{meta['low']}, {meta['high']}] {meta['unit']}")
-        if not math.isfinite(value):
-            raise ConfigError(f"{key} = {value!r} must be finite, in [{meta['low']}, {meta['high']}] {meta['unit']}")
-    low, high = meta.get("low"), meta.get("high")
-    if (low is not None and value < low) or (high is not None and value > high):
-        raise ConfigError(f"{key} = {value!r} is out of range; allowed [{low}, {high}] {meta['unit']}")
+class ConfigModel(BaseModel):
+    """Base of every config model: frozen, unknown keys refused, values checked when built.
+
+    A field whose type is another ``ConfigModel`` is a section (null or missing: its defaults);
+    other fields are declared with :func:`setting`. Any failure, when built directly, through
+    :meth:`from_dict` or :meth:`replace`, raises :class:`ConfigError` naming the dotted key.
+    """
+
+    model_config = ConfigDict(frozen=True, extra="forbid")
+
+    section: ClassVar[str] = ""
+    """Dotted key prefix of this model's fields when it is built on its own (``pile``)."""
+    label: ClassVar[str] = "config"
+    """What errors call this config (``unknown config key(s) ...``)."""
+
+    def __init__(self, /, **values: Any) -> None:
+        # pydantic calls this for nested sections too; an inner ConfigError carries its error records
+        # (``details``) and the outermost model rebuilds the message with the full dotted key.
+        try:
+            super().__init__(**values)
+        except ValidationError as error:
+            raise _config_error(type(self), error.errors(), type(self).section) from None
+
+    @model_validator(mode="before")
+    @classmethod
+    def _null_section_takes_defaults(cls, data: Any) -> Any:
+        if isinstance(data, Mapping):
+            sections = {key for key, _, f in _fields(cls) if _section_type(f.annotation)}
+            return {key: value for key, value in data.items() if not (value is None and key in sections)}
+        return data
+
+    @classmethod
+    def from_dict(cls, data: Mapping[str, Any], prefix: str | None = None) -> Self:
+        """Build a validated config from a nested dict (missing keys take defaults).
+
+        Args:
+            data: keys of this model; sections as nested mappings.
+            prefix: dotted key of ``data`` in error messages (default: the model's ``section``).
+        """
+        prefix = cls.section if prefix is None else prefix
+        if not isinstance(data, Mapping):
+            raise ConfigError(f"{prefix or cls.label} must be a mapping of keys, got {type(data).__name__}")
+        try:
+            return cls(**{str(key): value for key, value in data.items()})
+        except ConfigError as error:
+            if not error.details or prefix == cls.section:
+                raise
+            raise _config_error(cls, error.details, prefix) from None
+
+    def replace(self, **changes: Any) -> Self:
+        """A validated copy with some fields changed, e.g. ``config.replace(pile=config.pile.replace(variants=1))``."""
+        keys = {name: key for key, name, _ in _fields(type(self))}
+        values = {key: getattr(self, name) for name, key in keys.items()}
+        values.update({keys.get(name, name): value for name, value in changes.items()})
+        return type(self)(**values)
+
+    def to_dict(self) -> dict[str, Any]:
+        """Plain nested dict, as written to YAML (tuples as lists)."""
+        return self.model_dump(mode="json", by_alias=True)
+
+    @classmethod
+    def dotted_keys(cls, prefix: str = "") -> list[str]:
+        """Every dotted key this model accepts, sections expanded."""
+        out = []
+        for key, _, f in _fields(cls):
+            sub = _section_type(f.annotation)
+            out += sub.dotted_keys(f"{prefix}{key}.") if sub else [f"{prefix}{key}"]
+        return out
+
+    def describe(self, prefix: str = "") -> str:
+        """Table of every key with its value, unit, allowed values and meaning."""
+        rows = []
+        for key, name, f in _fields(type(self)):
+            value = getattr(self, name)
+            if _section_type(f.annotation):
+                rows.append(value.describe(f"{prefix}{key}."))
+                continue
+            extra = f.json_schema_extra or {}
+            choices = _choices(f.annotation)
+            allowed = (f"{choices}" if choices is not None else "text" if f.annotation is str
+                       else f"[{extra.get('low')}, {extra.get('high')}]" if extra.get("low") is not None else "-")
+            rows.append(f"{prefix + key:<30} {value!s:<10} {extra.get('unit', '-'):<6} {allowed:<16} {f.description}")
+        return "\n".join(rows)
 
 
-@dataclass(frozen=True)
-class RobotConfig(_Section):
+def _fields(model: type[ConfigModel]) -> list[tuple[str, str, FieldInfo]]:
+    """(key as written in YAML, attribute name, field) of each field of ``model``."""
+    return [(f.alias or name, name, f) for name, f in model.model_fields.items()]
+
+
+def _section_type(annotation: Any) -> type[ConfigModel] | None:
+    return annotation if isinstance(annotation, type) and issubclass(annotation, ConfigModel) else None
+
+
+def _model_in(annotation: Any) -> type[ConfigModel] | None:
+    """The config model in a field's type (``X`` or ``X | None``), if any."""
+    if typing.get_origin(annotation) in (typing.Union, types.UnionType):
+        return next(filter(None, map(_section_type, typing.get_args(annotation))), None)
+    return _section_type(annotation)
+
+
+def _choices(annotation: Any) -> list | None:
+    if annotation is bool:
+        return [False, True]
+    return list(typing.get_args(annotation)) if typing.get_origin(annotation) is Literal else None
+
+
+def _config_error(model: type[ConfigModel], details: list[dict[str, Any]], prefix: str = "") -> ConfigError:
+    """The :class:`ConfigError` for pydantic's error records from building ``model``.
+
+    Its message covers the first record (all unknown keys of the same section together); keys are
+    dotted, after ``prefix``.
+    """
+    first = details[0]
+    nested = (first.get("ctx") or {}).get("error")
+    if isinstance(nested, ConfigError) and nested.details:  # raised by a section built inside this model
+        inner = [{**d, "loc": (*first["loc"], *d["loc"])} for d in nested.details]
+        return _config_error(model, inner + details[1:], prefix)
+    head = [part for part in prefix.split(".") if part]
+
+    def walk(loc: tuple) -> tuple[list[str], type[ConfigModel] | None, FieldInfo | None, bool]:
+        """Key parts, the model there (if a section), the field there (if a leaf), whether a list item."""
+        parts, owner, leaf, item = list(head), model, None, False
+        for part in loc:
+            if isinstance(part, int) or owner is None:
+                item = True
+                continue
+            leaf = next((f for key, _, f in _fields(owner) if key == part), None)
+            parts.append(str(part))
+            owner = _model_in(leaf.annotation) if leaf is not None else None
+            leaf = None if owner is not None else leaf
+        return parts, owner, leaf, item
+
+    parts, _, leaf, item = walk(tuple(first["loc"]))
+    key = ".".join(parts)
+    if first["type"] == "extra_forbidden":
+        parent = tuple(first["loc"][:-1])
+        where, holder, _, _ = walk(parent)
+        bad = sorted(".".join([*where, str(d["loc"][-1])]) for d in details
+                     if d["type"] == "extra_forbidden" and tuple(d["loc"][:-1]) == parent)
+        known = [k for k, _, _ in _fields(holder)] if holder else []
+        if not where:
+            return ConfigError(f"unknown {model.label} section(s) {sorted(k.split('.')[-1] for k in bad)}; "
+                               f"known: {known}", details)
+        return ConfigError(f"unknown {model.label} key(s) {bad}; known in {'.'.join(where)}: {known}", details)
+    return ConfigError(_message(first, key or model.label, leaf, item), details)
+
+
+def _message(error: dict[str, Any], key: str, leaf: FieldInfo | None, item: bool) -> str:
+    kind, value = error["type"], error["input"]
+    if kind == "value_error":
+        reason = error["ctx"]["error"]
+        return f"{key} = {value!r} {reason}" if leaf is not None else str(reason)
+    if kind == "missing":
+        return f"{key} is required"
+    if leaf is None:
+        return f"{key} must be a mapping of keys, got {value!r}"
+    extra = leaf.json_schema_extra or {}
+    unit, low, high = extra.get("unit", "-"), extra.get("low"), extra.get("high")
+    span = f"[{low}, {high}]"
+    in_range = f", each in {span} {unit}" if low is not None else ""
+    shown = float(value) if type(value) is int and leaf.annotation is not int else value  # as a float field holds it
+    choices = _choices(leaf.annotation)
+    if choices is not None:
+        return f"{key} = {value!r} is not allowed; choose one of {choices}"
+    if typing.get_origin(leaf.annotation) is tuple:
+        if item and kind in ("greater_than_equal", "less_than_equal"):
+            return f"{key} holds {shown!r}, out of range; allowed {span} {unit}"
+        if item:
+            return f"{key} holds {value!r}, not a finite number; it must be a list of numbers{in_range}"
+        if kind == "too_short":
+            return f"{key} = {value!r} must be a list of at least {error['ctx']['min_length']} numbers"
+        return f"{key} = {value!r} must be a list of numbers{in_range}"
+    if kind == "int_type":
+        return f"{key} = {value!r} must be an integer in {span}"
+    if kind in ("float_type", "float_parsing"):
+        return f"{key} = {value!r} must be a number in {span} {unit}"
+    if kind == "finite_number":
+        return f"{key} = {value!r} must be finite, in {span} {unit}"
+    if kind in ("greater_than_equal", "less_than_equal"):
+        return f"{key} = {shown!r} is out of range; allowed {span} {unit}"
+    if kind == "string_type":
+        return f"{key} = {value!r} must be a string"
+    return f"{key} = {value!r}: {error['msg']}"
+
+
+PILE_ANGLE_RANGE_DEG = (15.0, 60.0)
+PileAngles = numbers(*PILE_ANGLE_RANGE_DEG)
+
+
+class RobotConfig(ConfigModel):
     """The loader: start pose and actuator limits."""
 
-    _section = "robot"
-    start_gap_m: float = _field(0.10, "m", "gap between the bucket tip and the pile's toe at the start", 0.0, 0.6)
-    start_lift_rad: float = _field(0.23, "rad", "lift angle at the start (0.23: bucket floor level, just off the ground)",
-                                   *kinematics.LIFT_RANGE_RAD)
-    start_tilt_rad: float = _field(0.0, "rad", "tilt angle at the start", *kinematics.TILT_RANGE_RAD)
-    start_gap_jitter_m: float = _field(0.01, "m", "largest random change of the start gap in each episode", 0.0, 0.1)
-    max_speed_mps: float = _field(0.1, "m/s", "drive speed limit, forward and back", 0.01, 0.5)
-    lift_speed_radps: float = _field(0.4, "rad/s", "fastest lift setpoint motion (linear actuator speed)", 0.05, 3.0)
-    tilt_speed_radps: float = _field(1.0, "rad/s", "fastest tilt setpoint motion (linear actuator speed)", 0.05, 5.0)
-    lift_torque_limit_nm: float = _field(150.0, "N*m", "lift actuator torque bound (a heavy pile can stall it)", 1.0, 1000.0)
-    tilt_torque_limit_nm: float = _field(40.0, "N*m", "tilt actuator torque bound", 1.0, 500.0)
-    wheel_torque_limit_nm: float = _field(12.0, "N*m", "torque bound of each wheel motor", 0.5, 100.0)
-    ground_friction: float = _field(0.9, "-", "wheel-ground sliding friction coefficient", 0.05, 2.0)
-    bucket_friction: float = _field(0.4, "-", "sliding friction between the steel bucket and a particle", 0.05, 2.0)
+    section = "robot"
+    start_gap_m: float = setting(0.10, "m", "gap between the bucket tip and the pile's toe at the start", 0.0, 0.6)
+    start_lift_rad: float = setting(0.23, "rad", "lift angle at the start (0.23: bucket floor level, just off the ground)",
+                                    *kinematics.LIFT_RANGE_RAD)
+    start_tilt_rad: float = setting(0.0, "rad", "tilt angle at the start", *kinematics.TILT_RANGE_RAD)
+    start_gap_jitter_m: float = setting(0.01, "m", "largest random change of the start gap in each episode", 0.0, 0.1)
+    max_speed_mps: float = setting(0.1, "m/s", "drive speed limit, forward and back", 0.01, 0.5)
+    lift_speed_radps: float = setting(0.4, "rad/s", "fastest lift setpoint motion (linear actuator speed)", 0.05, 3.0)
+    tilt_speed_radps: float = setting(1.0, "rad/s", "fastest tilt setpoint motion (linear actuator speed)", 0.05, 5.0)
+    lift_torque_limit_nm: float = setting(150.0, "N*m", "lift actuator torque bound (a heavy pile can stall it)", 1.0, 1000.0)
+    tilt_torque_limit_nm: float = setting(40.0, "N*m", "tilt actuator torque bound", 1.0, 500.0)
+    wheel_torque_limit_nm: float = setting(12.0, "N*m", "torque bound of each wheel motor", 0.5, 100.0)
+    ground_friction: float = setting(0.9, "-", "wheel-ground sliding friction coefficient", 0.05, 2.0)
+    bucket_friction: float = setting(0.4, "-", "sliding friction between the steel bucket and a particle", 0.05, 2.0)
 
 
-@dataclass(frozen=True)
-class PileConfig(_Section):
+class PileConfig(ConfigModel):
     """The pile of spherical particles in front of the robot."""
 
-    _section = "pile"
-    angle_deg: float = _field(32.0, "deg", "mean slope of the pile's front face", 15.0, 60.0)
-    angle_mix_deg: tuple = _field((), "deg", "if given, each pile variant takes one of these face slopes in turn "
-                                  "(training on a mix of piles); empty: always angle_deg", 15.0, 60.0)
-    n_particles: int = _field(72, "-", "number of particles", 1, 400)
-    radius_m: float = _field(0.034, "m", "particle radius", 0.01, 0.08)
-    particle_mass_kg: float = _field(0.3, "kg", "mass of one particle", 0.01, 5.0)
-    friction: float = _field(1.0, "-", "sliding friction of particle contacts", 0.0, 2.0)
-    rolling: bool = _field(True, "-", "particles may roll (free joints, spin damped by rolling_damping_nms); "
-                           "false: they slide without turning (three slide joints each): a 1.3-1.6x faster "
-                           "scene, but a stiffer pile (scripted fill 0.63 instead of 0.71) that the shipped "
-                           "policy was not trained on", choices=(False, True))
-    rolling_damping_nms: float = _field(0.5, "N*m*s/rad", "damping of particle spin when pile.rolling: the rolling "
-                                        "resistance of angular gravel", 0.0, 10.0)
-    across: int = _field(8, "-", "particles per row across the pile (y)", 1, 20)
-    jitter_m: float = _field(0.003, "m", "largest random offset of a particle's start position", 0.0, 0.02)
-    settle_s: float = _field(1.0, "s", "physics time a new pile settles (then on until it rests, at most 3 s more)", 0.0, 5.0)
-    variants: int = _field(16, "-", "distinct jittered piles per environment, each settled once and then reused", 1, 1024)
+    section = "pile"
+    angle_deg: float = setting(32.0, "deg", "mean slope of the pile's front face", *PILE_ANGLE_RANGE_DEG)
+    angle_mix_deg: PileAngles = setting(
+        (), "deg", "if given, each pile variant takes one of these face slopes in turn "
+        "(training on a mix of piles); empty: always angle_deg", *PILE_ANGLE_RANGE_DEG)
+    n_particles: int = setting(72, "-", "number of particles", 1, 400)
+    radius_m: float = setting(0.034, "m", "particle radius", 0.01, 0.08)
+    particle_mass_kg: float = setting(0.3, "kg", "mass of one particle", 0.01, 5.0)
+    friction: float = setting(1.0, "-", "sliding friction of particle contacts", 0.0, 2.0)
+    rolling: bool = setting(True, "-", "particles may roll (free joints, spin damped by rolling_damping_nms); "
+                            "false: they slide without turning (three slide joints each): a 1.3-1.6x faster "
+                            "scene, but a stiffer pile (scripted fill 0.63 instead of 0.71) that the shipped "
+                            "policy was not trained on")
+    rolling_damping_nms: float = setting(0.5, "N*m*s/rad", "damping of particle spin when pile.rolling: the rolling "
+                                         "resistance of angular gravel", 0.0, 10.0)
+    across: int = setting(8, "-", "particles per row across the pile (y)", 1, 20)
+    jitter_m: float = setting(0.003, "m", "largest random offset of a particle's start position", 0.0, 0.02)
+    settle_s: float = setting(1.0, "s", "physics time a new pile settles (then on until it rests, at most 3 s more)", 0.0, 5.0)
+    variants: int = setting(16, "-", "distinct jittered piles per environment, each settled once and then reused", 1, 1024)
 
 
-@dataclass(frozen=True)
-class RewardConfig(_Section):
+class RewardConfig(ConfigModel):
     """Paper eq. 5-7: shaped distance reward plus a mass bonus at the terminal point."""
 
-    _section = "reward"
-    c_w: float = _field(10.0, "-", "weight c_w of the mass bonus c_w * w_t paid on reaching the terminal point", 0.0, 1000.0)
-    epsilon_m: float = _field(0.10, "m", "tolerance epsilon: the tip within it of the terminal point is success", 0.001, 0.5)
-    delta_m: float = _field(0.06, "m", "Delta: the tip within it of a particle centre is 'penetrating'", 0.001, 0.5)
-    distance_scale_m: float = _field(1.0, "m", "distances are divided by it inside tanh (1 m: the paper's eq. 5)", 0.01, 10.0)
-    terminal_dx_m: float = _field(0.20, "m", "terminal point x from the pile's toe (over the pile, where a scoop ends, raised clear of it)", -1.0, 1.0)
-    terminal_z_m: float = _field(0.30, "m", "terminal point height above the ground", 0.0, 1.0)
-    rated_load_kg: float = _field(7.0, "kg", "rated bucket load; fill factor = mass in bucket / rated load", 0.1, 100.0)
+    section = "reward"
+    c_w: float = setting(10.0, "-", "weight c_w of the mass bonus c_w * w_t paid on reaching the terminal point", 0.0, 1000.0)
+    epsilon_m: float = setting(0.10, "m", "tolerance epsilon: the tip within it of the terminal point is success", 0.001, 0.5)
+    delta_m: float = setting(0.06, "m", "Delta: the tip within it of a particle centre is 'penetrating'", 0.001, 0.5)
+    distance_scale_m: float = setting(1.0, "m", "distances are divided by it inside tanh (1 m: the paper's eq. 5)", 0.01, 10.0)
+    terminal_dx_m: float = setting(0.20, "m", "terminal point x from the pile's toe (over the pile, where a scoop ends, raised clear of it)", -1.0, 1.0)
+    terminal_z_m: float = setting(0.30, "m", "terminal point height above the ground", 0.0, 1.0)
+    rated_load_kg: float = setting(7.0, "kg", "rated bucket load; fill factor = mass in bucket / rated load", 0.1, 100.0)
 
 
-@dataclass(frozen=True)
-class EnvConfig(_Section):
+class EnvConfig(ConfigModel):
     """Episode timing, physics step and where the state's mass comes from."""
 
-    _section = "env"
-    control_period_s: float = _field(0.25, "s", "time between actions", 0.02, 1.0)
-    max_episode_s: float = _field(8.0, "s", "episode time limit", 0.5, 60.0)
-    timestep_s: float = _field(0.25 / 12, "s", "MuJoCo physics step (a divisor of the control period)", 0.0005, 0.04)
-    mass_source: str = _field("truth", "-", "the state's w_t from counting particles (truth) or from the joint "
-                              "torques (torque); the reward always counts",
-                              choices=("truth", "torque"))
-    load_cell_noise_nm: float = _field(0.2, "N*m", "std of torque noise when mass_source = torque", 0.0, 20.0)
+    section = "env"
+    control_period_s: float = setting(0.25, "s", "time between actions (a whole number of physics steps)", 0.02, 1.0)
+    max_episode_s: float = setting(8.0, "s", "episode time limit", 0.5, 60.0)
+    timestep_s: float = setting(0.25 / 12, "s", "MuJoCo physics step (a divisor of the control period)", 0.0005, 0.04)
+    mass_source: Literal["truth", "torque"] = setting(
+        "truth", "-", "the state's w_t from counting particles (truth) or from the joint torques (torque); "
+        "the reward always counts")
+    load_cell_noise_nm: float = setting(0.2, "N*m", "std of torque noise when mass_source = torque", 0.0, 20.0)
+
+    @model_validator(mode="after")
+    def _whole_physics_steps(self) -> Self:
+        period, step = self.control_period_s, self.timestep_s
+        if period < step:
+            raise ConfigError(f"env.control_period_s = {period} must be at least env.timestep_s = {step}")
+        ratio = period / step
+        if abs(ratio - round(ratio)) > 1e-9:
+            raise ConfigError(f"env.control_period_s = {period} s must be a whole number of env.timestep_s = {step} s "
+                              f"(it is {ratio:.6g} steps); e.g. env.timestep_s = {period / math.ceil(ratio)}")
+        if self.max_episode_s / period < 1:
+            raise ConfigError("env.max_episode_s must be at least one env.control_period_s")
+        return self
 
 
-@dataclass(frozen=True)
-class ScoopConfig:
+class ScoopConfig(ConfigModel):
     """Everything that defines a scooping scene and task."""
 
-    robot: RobotConfig = field(default_factory=RobotConfig)
-    pile: PileConfig = field(default_factory=PileConfig)
-    reward: RewardConfig = field(default_factory=RewardConfig)
-    env: EnvConfig = field(default_factory=EnvConfig)
-
-    def __post_init__(self) -> None:
-        steps = self.env.max_episode_s / self.env.control_period_s
-        if self.env.control_period_s < self.env.timestep_s:
-            raise ConfigError(f"env.control_period_s = {self.env.control_period_s} must be at least "
-                              f"env.timestep_s = {self.env.timestep_s}")
-        if steps < 1:
-            raise ConfigError("env.max_episode_s must be at least one env.control_period_s")
+    robot: RobotConfig = Field(default_factory=RobotConfig, description="the loader")
+    pile: PileConfig = Field(default_factory=PileConfig, description="the pile")
+    reward: RewardConfig = Field(default_factory=RewardConfig, description="the reward")
+    env: EnvConfig = Field(default_factory=EnvConfig, description="the episode and physics")
 
     @property
     def max_episode_steps(self) -> int:
         """Number of actions in one episode before the time limit."""
-        return int(round(self.env.max_episode_s / self.env.control_period_s))
+        return round(self.env.max_episode_s / self.env.control_period_s)
 
     @property
     def substeps(self) -> int:
         """Physics steps per control period."""
-        return max(1, int(round(self.env.control_period_s / self.env.timestep_s)))
+        return max(1, round(self.env.control_period_s / self.env.timestep_s))
 
-    def to_dict(self) -> dict[str, dict[str, Any]]:
-        """Plain nested dict, as written to YAML (tuples as lists)."""
-        def plain(value: Any) -> Any:
-            return list(value) if isinstance(value, tuple) else value
-        return {name: {f.name: plain(getattr(getattr(self, name), f.name)) for f in dataclasses.fields(getattr(self, name))}
-                for name in SECTIONS}
-
-    def with_overrides(self, overrides: Mapping[str, Any]) -> "ScoopConfig":
+    def with_overrides(self, overrides: Mapping[str, Any]) -> ScoopConfig:
         """A copy with dotted keys replaced, e.g. ``{"pile.angle_deg": 28}``; string values are parsed as YAML."""
-        sections = {name: dict(values) for name, values in self.to_dict().items()}
+        sections = self.to_dict()
         for key, value in overrides.items():
             section, _, name = str(key).partition(".")
-            if section not in SECTIONS or name not in sections[section]:
+            if section not in sections or name not in sections[section]:
                 raise ConfigError(f"unknown config key {key!r}; known keys: {', '.join(all_keys())}")
-            if isinstance(value, str):
-                value = _parse_scalar(value)
-            default = sections[section][name]
-            if isinstance(default, float) and isinstance(value, int) and not isinstance(value, bool):
-                value = float(value)
-            sections[section][name] = value
-        return from_dict(sections)
-
-    def describe(self) -> str:
-        """Table of every key with its value, unit and range."""
-        rows = []
-        for section, cls in SECTIONS.items():
-            for f in dataclasses.fields(cls):
-                meta = f.metadata
-                allowed = (f"{list(meta['choices'])}" if meta["choices"] else f"[{meta['low']}, {meta['high']}]")
-                rows.append(f"{section}.{f.name:<24} {getattr(getattr(self, section), f.name)!s:<10} "
-                            f"{meta['unit']:<6} {allowed:<16} {meta['doc']}")
-        return "\n".join(rows)
-
-
-SECTIONS = {"robot": RobotConfig, "pile": PileConfig, "reward": RewardConfig, "env": EnvConfig}
+            sections[section][name] = _parse_scalar(value) if isinstance(value, str) else value
+        return ScoopConfig.from_dict(sections)
 
 
 def all_keys() -> list[str]:
     """Every dotted key a config accepts."""
-    return [f"{s}.{f.name}" for s, cls in SECTIONS.items() for f in dataclasses.fields(cls)]
+    return ScoopConfig.dotted_keys()
 
 
 def _parse_scalar(text: str) -> Any:
@@ -216,25 +377,7 @@ def _parse_scalar(text: str) -> Any:
 
 def from_dict(data: Mapping[str, Any]) -> ScoopConfig:
     """Build a validated config from a nested dict (missing keys take defaults)."""
-    unknown = set(data) - set(SECTIONS)
-    if unknown:
-        raise ConfigError(f"unknown config section(s) {sorted(unknown)}; known: {list(SECTIONS)}")
-    parts = {}
-    for section, cls in SECTIONS.items():
-        values = dict(data.get(section) or {})
-        names = {f.name for f in dataclasses.fields(cls)}
-        bad = set(values) - names
-        if bad:
-            raise ConfigError(f"unknown config key(s) {sorted(f'{section}.{b}' for b in bad)}; known keys: {', '.join(all_keys())}")
-        for f in dataclasses.fields(cls):
-            if f.name in values and isinstance(f.default, float) and isinstance(values[f.name], int) \
-                    and not isinstance(values[f.name], bool):
-                values[f.name] = float(values[f.name])
-            if f.name in values and isinstance(f.default, tuple) and isinstance(values[f.name], (list, tuple)):
-                values[f.name] = tuple(float(v) if isinstance(v, int) and not isinstance(v, bool) else v
-                                       for v in values[f.name])
-        parts[section] = cls(**values)
-    return ScoopConfig(**parts)
+    return ScoopConfig.from_dict(data)
 
 
 def overrides_from_yaml(path: str | Path) -> dict[str, Any]:
@@ -249,7 +392,8 @@ def overrides_from_yaml(path: str | Path) -> dict[str, Any]:
         elif isinstance(value, dict):
             out.update({f"{key}.{name}": item for name, item in value.items()})
         else:
-            raise ConfigError(f"{path}: section {key!r} must be a mapping of keys; known sections: {list(SECTIONS)}")
+            raise ConfigError(f"{path}: section {key!r} must be a mapping of keys; known sections: "
+                              f"{list(ScoopConfig.model_fields)}")
     return out
 
 

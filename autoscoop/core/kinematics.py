@@ -3,7 +3,7 @@
 Frame ("chassis frame"): x forward from the chassis centre, z up from the ground under it, metres;
 the arm moves in this x-z plane. Angles in radians. Both arm joints turn about the chassis +y axis
 (y to the robot's left), so a positive angle pitches the part forward-down: a larger lift angle
-lowers the arm, a larger tilt angle tips the cutting edge down. Dimensions are from SPEC.md; the
+lowers the arm, a larger tilt angle tips the cutting edge down. Dimensions are from docs/definitions.md; the
 MJCF in ``assets/loader.xml`` is built from the same numbers and a test checks they agree.
 """
 

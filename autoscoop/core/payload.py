@@ -4,7 +4,8 @@ The real robot cannot count particles: it measures the torques that hold the arm
 turns them into the mass in the bucket. This module holds the arm's planar statics for that: the
 Jacobian of a point of the bucket, the gravity torques ``G`` of the known links, two estimators and
 their calibration. It never imports the simulator; :mod:`autoscoop.sim.load_cell` feeds it the
-simulator's readings and the ROS node feeds it the robot's.
+simulator's readings and the ROS node feeds it the robot's, both as :class:`PayloadReading` s averaged
+over the control period by :class:`ReadingAverage`.
 
 Frames and signs (the same as :mod:`autoscoop.core.kinematics`, which holds every dimension):
 
@@ -62,6 +63,89 @@ FIT_RCOND = 1e-2
 """Directions of the (column-scaled) calibration fit weaker than this fraction of the strongest are
 left at the prior: holds at a single bucket angle (which differ only by the arm's sag under load)
 do not tell the lever arm's two components apart, and fitting them would fit noise."""
+
+
+# ------------------------------------------------------------------------- readings
+@dataclass(frozen=True)
+class PayloadReading:
+    """One set of the robot's readings for the payload estimate (simulated or real; frames as the module's).
+
+    Attributes:
+        lift_rad: lift joint angle, rad, about +y (positive pitches the arm forward-down).
+        tilt_rad: tilt (bucket) joint angle, rad, about +y, relative to the arm.
+        lift_torque_nm: actuator torque at the lift joint about +y, N*m (negative holds a load forward).
+        tilt_torque_nm: actuator torque at the tilt (bucket) joint about +y, N*m; the ROS topic
+            ``bucket_torque`` carries it.
+        chassis_pitch_rad: chassis pitch from the IMU, rad, positive nose down (about +y); 0 takes
+            gravity along the chassis' -z.
+    """
+
+    lift_rad: float
+    tilt_rad: float
+    lift_torque_nm: float
+    tilt_torque_nm: float
+    chassis_pitch_rad: float = 0.0
+
+    def as_array(self) -> np.ndarray:
+        """(5,) array in the field order (:data:`READING_FIELDS`)."""
+        return np.array([self.lift_rad, self.tilt_rad, self.lift_torque_nm, self.tilt_torque_nm,
+                         self.chassis_pitch_rad])
+
+
+READING_FIELDS = ("lift_rad", "tilt_rad", "lift_torque_nm", "tilt_torque_nm", "chassis_pitch_rad")
+"""The fields of :class:`PayloadReading`, in order."""
+_FIELD_INDEX = {name: i for i, name in enumerate(READING_FIELDS)}
+
+
+class ReadingAverage:
+    """The mean of the :class:`PayloadReading` s added since it was last taken: the load cell's averaging.
+
+    A controller sees the payload's readings averaged over its control period, because particles
+    rattling in the servo-held bucket swing a single reading by a kilogram or more. The simulator's
+    load cell adds one full reading per physics step; the ROS controller adds each message's fields
+    as they arrive (``fields``), so each field is averaged over the readings of that field. Each mean
+    is the sum of the readings divided by their count.
+    """
+
+    def __init__(self) -> None:
+        self._sum = np.zeros(len(READING_FIELDS))
+        self._count = np.zeros(len(READING_FIELDS), dtype=np.int64)
+        self._last = np.full(len(READING_FIELDS), math.nan)
+
+    def add(self, reading: PayloadReading, fields: tuple[str, ...] = READING_FIELDS) -> None:
+        """Add ``reading``'s ``fields`` (default: all of them); its other fields are ignored."""
+        values = reading.as_array()
+        if fields is READING_FIELDS or fields == READING_FIELDS:
+            self._sum += values
+            self._count += 1
+            self._last[:] = values
+            return
+        index = [_FIELD_INDEX[name] for name in fields]
+        self._sum[index] += values[index]
+        self._count[index] += 1
+        self._last[index] = values[index]
+
+    def take(self) -> PayloadReading | None:
+        """The mean reading since the last take, then start over; ``None`` when nothing was added since.
+
+        A field with no reading since the last take keeps its last value (NaN if it never had one)."""
+        counted = self._count > 0
+        if not counted.any():
+            return None
+        mean = self._last.copy()
+        mean[counted] = self._sum[counted] / self._count[counted]
+        self.restart()
+        return PayloadReading(*(float(v) for v in mean))
+
+    @property
+    def latest(self) -> PayloadReading:
+        """The last value of each field (NaN where none was ever added)."""
+        return PayloadReading(*(float(v) for v in self._last))
+
+    def restart(self) -> None:
+        """Start the means over (a scoop starts); the last values stay."""
+        self._sum[:] = 0.0
+        self._count[:] = 0
 
 
 # ------------------------------------------------------------------------- kinematics and Jacobians
@@ -225,12 +309,12 @@ class PayloadCalibration:
         data = {"format": CALIBRATION_FORMAT, **asdict(self)}
         data["payload_com_in_bucket_m"] = [float(v) for v in self.payload_com_in_bucket_m]
         header = ("# autoscoop payload calibration: torque offsets (N*m) and the payload's centre of mass in the\n"
-                  "# bucket frame (x to the cutting edge, z to the mouth; m). See autoscoop/payload.py.\n")
+                  "# bucket frame (x to the cutting edge, z to the mouth; m). See autoscoop/core/payload.py.\n")
         path.write_text(header + yaml.safe_dump(data, sort_keys=False))
         return path
 
     @classmethod
-    def load(cls, path: str | Path) -> "PayloadCalibration":
+    def load(cls, path: str | Path) -> PayloadCalibration:
         """Read a calibration written by :meth:`save`; unknown keys are an error."""
         data = yaml.safe_load(Path(path).read_text()) or {}
         if not isinstance(data, dict) or data.pop("format", None) != CALIBRATION_FORMAT:
@@ -348,17 +432,17 @@ class PayloadEstimator:
             raise ValueError(f"payload estimator method {self.method!r} is not allowed; choose one of {list(ESTIMATORS)}")
 
     @classmethod
-    def from_yaml(cls, path: str | Path, method: str = "eq8") -> "PayloadEstimator":
+    def from_yaml(cls, path: str | Path, method: str = "eq8") -> PayloadEstimator:
         """The estimator with a calibration file written by ``autoscoop payload calibrate``."""
         return cls(PayloadCalibration.load(path), method)
 
-    def mass_kg(self, lift_rad: float, tilt_rad: float, lift_torque_nm: float, tilt_torque_nm: float,
-                chassis_pitch_rad: float = 0.0) -> float:
-        """Payload mass from one set of readings (angles rad, torques N*m, pitch rad), kg; not clipped."""
+    def mass_kg(self, reading: PayloadReading) -> float:
+        """Payload mass from one set of readings, kg; not clipped (eq. 4 ignores the lift torque)."""
+        r = reading
         if self.method == "eq4":
-            return float(mass_eq4(lift_rad, tilt_rad, tilt_torque_nm, self.calibration, chassis_pitch_rad))
-        return float(mass_eq8(lift_rad, tilt_rad, lift_torque_nm, tilt_torque_nm, self.calibration,
-                              chassis_pitch_rad))
+            return float(mass_eq4(r.lift_rad, r.tilt_rad, r.tilt_torque_nm, self.calibration, r.chassis_pitch_rad))
+        return float(mass_eq8(r.lift_rad, r.tilt_rad, r.lift_torque_nm, r.tilt_torque_nm, self.calibration,
+                              r.chassis_pitch_rad))
 
 
 def reported_mass_kg(estimate_kg: float, previous_kg: float, empty_below_kg: float = 0.0) -> float:
@@ -432,7 +516,7 @@ def fit_calibration(lift_rad: np.ndarray, tilt_rad: np.ndarray, lift_torque_nm: 
     # scale the columns so the minimum-norm correction weighs N*m and metres alike
     scale = np.linalg.norm(design, axis=0)
     scale[scale == 0] = 1.0
-    step, _, rank, singular = np.linalg.lstsq(design / scale, target - design @ start, rcond=FIT_RCOND)
+    step, _, rank, _ = np.linalg.lstsq(design / scale, target - design @ start, rcond=FIT_RCOND)
     solution = start + step / scale
     residual = target - design @ solution
     fitted = replace(prior, lift_offset_nm=float(solution[0]), tilt_offset_nm=float(solution[1]),

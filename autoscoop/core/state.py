@@ -1,6 +1,6 @@
 """The paper's 12-number state and the action scaling: the one place the env, ROS node and exports use.
 
-State, in this order (paper Sec. III-C; SPEC.md):
+State, in this order (paper Sec. III-C; docs/definitions.md):
 
 | index | name      | meaning                                               | unit | frame                   |
 |-------|-----------|-------------------------------------------------------|------|-------------------------|

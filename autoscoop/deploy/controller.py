@@ -7,7 +7,8 @@ numbers with the time it arrived, and calls :meth:`ControllerCore.update` whenev
 
 Per control period (``control.control_period_s``, 0.25 s) while a scoop runs and every input is
 healthy, it builds the 12-number state with :func:`autoscoop.core.state.build_state` (mass from the joint
-torques, averaged over the period, through the payload estimator), asks the policy for an action, moves the targets with
+torques, averaged over the period by :class:`autoscoop.core.payload.ReadingAverage` as in the environment,
+through the payload estimator), asks the policy for an action, moves the targets with
 :func:`autoscoop.core.state.advance_targets` (the environment's scaling) and clamps the command to the
 robot's limits. Otherwise:
 
@@ -26,27 +27,40 @@ from __future__ import annotations
 import math
 import time
 from collections import deque
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Callable, Protocol, Sequence
+from typing import Any, Protocol
 
 import numpy as np
 
 from autoscoop.core import kinematics
-from autoscoop.core.version import __version__
-from autoscoop.core.policy import Policy
 from autoscoop.core.config import ScoopConfig
+from autoscoop.core.payload import (
+    PayloadCalibration,
+    PayloadEstimator,
+    PayloadReading,
+    ReadingAverage,
+    reported_mass_kg,
+)
+from autoscoop.core.policy import Policy
+from autoscoop.core.reward import is_penetrating
+from autoscoop.core.state import (
+    CommandLimits,
+    Measurements,
+    advance_targets,
+    build_state,
+    validate_action,
+)
 from autoscoop.deploy.robot_config import RobotNodeConfig
 from autoscoop.deploy.safety import Command, CommandLimiter, InputWatchdog
-from autoscoop.core.payload import PayloadCalibration, PayloadEstimator, reported_mass_kg
-from autoscoop.envs.records import EpisodeRecord
-from autoscoop.core.reward import is_penetrating
-from autoscoop.core.state import CommandLimits, Measurements, advance_targets, build_state, validate_action
+from autoscoop.envs.outcome import EpisodeOutcome
+from autoscoop.envs.records import EpisodeRecord, episode_meta
 
 SENSOR_INPUTS = ("joint_states", "odom", "pile_range")
 """Inputs the watchdog always requires fresh; also the payload's (per ``payload.source`` and
-``payload.method``: ``bucket_torque`` and ``lift_torque``, ``bucket_torque``, or ``payload_mass``), and
-``estop`` when ``estop.required``."""
+``payload.method``: ``bucket_torque`` (the tilt torque) and ``lift_torque``, ``bucket_torque``, or
+``payload_mass``), and ``estop`` when ``estop.required``."""
 WAKE_SLACK_S = 1e-4
 """A wake-up this close before a deadline counts as on time (timers fire a little early or late)."""
 
@@ -58,42 +72,10 @@ def payload_inputs(payload: Any) -> tuple[str, ...]:
     return ("bucket_torque", "lift_torque") if payload.method == "eq8" else ("bucket_torque",)
 
 
-class ChannelMeans:
-    """Means of each reading since they were last taken: the payload's load-cell averaging.
-
-    The environment's torque sensor (:class:`autoscoop.sim.load_cell.TorqueMassSensor`) averages its
-    readings over each control period, because particles rattling in the servo-held bucket swing a
-    single reading by a kilogram or more; the node averages the messages of each channel the same way.
-    """
-
-    def __init__(self) -> None:
-        self._sum: dict[str, float] = {}
-        self._count: dict[str, int] = {}
-        self._last: dict[str, float] = {}
-
-    def add(self, channel: str, value: float) -> None:
-        """One (finite) reading of ``channel``."""
-        self._sum[channel] = self._sum.get(channel, 0.0) + value
-        self._count[channel] = self._count.get(channel, 0) + 1
-        self._last[channel] = value
-
-    def take(self, channel: str) -> float:
-        """The mean since the last take (the last reading when none came since; NaN when none ever), then start over."""
-        count = self._count.pop(channel, 0)
-        total = self._sum.pop(channel, 0.0)
-        return total / count if count else self._last.get(channel, math.nan)
-
-    def restart(self) -> None:
-        """Start every average over (a scoop starts); the last readings stay."""
-        self._sum.clear()
-        self._count.clear()
-
-
 class MassFromTorque(Protocol):
-    """Payload mass (kg) from the joint torques (N*m) at the measured joint angles and chassis pitch (rad)."""
+    """Payload mass (kg) from a reading of the joint torques at the measured joint angles and chassis pitch."""
 
-    def __call__(self, lift_torque_nm: float, tilt_torque_nm: float, lift_rad: float, tilt_rad: float,
-                 chassis_pitch_rad: float = 0.0) -> float: ...
+    def __call__(self, reading: PayloadReading) -> float: ...
 
 
 class PayloadMass:
@@ -116,9 +98,8 @@ class PayloadMass:
         self.empty_below_kg = empty_below_kg
         self._last = 0.0
 
-    def __call__(self, lift_torque_nm: float, tilt_torque_nm: float, lift_rad: float, tilt_rad: float,
-                 chassis_pitch_rad: float = 0.0) -> float:
-        mass = self.estimator.mass_kg(lift_rad, tilt_rad, lift_torque_nm, tilt_torque_nm, chassis_pitch_rad)
+    def __call__(self, reading: PayloadReading) -> float:
+        mass = self.estimator.mass_kg(reading)
         self._last = reported_mass_kg(mass, self._last, self.empty_below_kg)
         return self._last
 
@@ -162,7 +143,8 @@ class ControllerCore:
         self.watchdog = InputWatchdog(inputs, config.control.input_timeout_s)
         self.mass_from_torque = mass_from_torque or PayloadMass(config.payload.calibration,
                                                                 config.payload.empty_below_kg, config.payload.method)
-        self.means = ChannelMeans()
+        self.readings = ReadingAverage()
+        """the payload's readings, each field averaged over the messages since the last control period"""
         self.record_dir = None if record_dir is None else Path(record_dir)
         self.log = log or (lambda level, text: None)
         margin = config.sensors.joint_margin_rad
@@ -172,8 +154,8 @@ class ControllerCore:
         self.tilt_rad = math.nan
         self.speed_mps = math.nan
         self.range_m = math.nan
-        self.torque_nm = math.nan
         self.lift_torque_nm = math.nan
+        self.tilt_torque_nm = math.nan
         self.chassis_pitch_rad = 0.0
         self.reported_mass_kg = math.nan
         self.estop_engaged = False
@@ -213,8 +195,7 @@ class ControllerCore:
                 return False
             values[joint] = angle
         self.lift_rad, self.tilt_rad = values["lift"], values["tilt"]
-        self.means.add("lift_rad", self.lift_rad)
-        self.means.add("tilt_rad", self.tilt_rad)
+        self.readings.add(self._reading(), ("lift_rad", "tilt_rad"))
         self.watchdog.valid("joint_states", now)
         return True
 
@@ -225,7 +206,7 @@ class ControllerCore:
         self.speed_mps = float(speed_mps)
         pitch = float(chassis_pitch_rad)
         self.chassis_pitch_rad = pitch if math.isfinite(pitch) and abs(pitch) < 0.5 * math.pi else 0.0
-        self.means.add("pitch", self.chassis_pitch_rad)
+        self.readings.add(self._reading(), ("chassis_pitch_rad",))
         return True
 
     def pile_range(self, range_m: float, now: float, min_range_m: float = 0.0, max_range_m: float = math.inf) -> bool:
@@ -241,20 +222,20 @@ class ControllerCore:
         self.watchdog.valid("pile_range", now)
         return True
 
-    def bucket_torque(self, torque_nm: float, now: float) -> bool:
-        """``std_msgs/Float64``: torque at the tilt joint, N*m."""
-        if not self._within("bucket_torque", torque_nm, self.config.sensors.max_torque_nm, "N*m", now):
+    def bucket_torque(self, tilt_torque_nm: float, now: float) -> bool:
+        """``std_msgs/Float64`` on ``bucket_torque``: torque at the tilt (bucket) joint, N*m."""
+        if not self._within("bucket_torque", tilt_torque_nm, self.config.sensors.max_torque_nm, "N*m", now):
             return False
-        self.torque_nm = float(torque_nm)
-        self.means.add("tilt_torque", self.torque_nm)
+        self.tilt_torque_nm = float(tilt_torque_nm)
+        self.readings.add(self._reading(), ("tilt_torque_nm",))
         return True
 
-    def lift_torque(self, torque_nm: float, now: float) -> bool:
-        """``std_msgs/Float64``: torque at the lift joint, N*m (``payload.method: eq8``)."""
-        if not self._within("lift_torque", torque_nm, self.config.sensors.max_torque_nm, "N*m", now):
+    def lift_torque(self, lift_torque_nm: float, now: float) -> bool:
+        """``std_msgs/Float64`` on ``lift_torque``: torque at the lift joint, N*m (``payload.method: eq8``)."""
+        if not self._within("lift_torque", lift_torque_nm, self.config.sensors.max_torque_nm, "N*m", now):
             return False
-        self.lift_torque_nm = float(torque_nm)
-        self.means.add("lift_torque", self.lift_torque_nm)
+        self.lift_torque_nm = float(lift_torque_nm)
+        self.readings.add(self._reading(), ("lift_torque_nm",))
         return True
 
     def payload_mass(self, mass_kg: float, now: float) -> bool:
@@ -336,13 +317,17 @@ class ControllerCore:
         return self._publish(self._stopped(mode, reason))
 
     # ---------------------------------------------------------------- internals
+    def _reading(self) -> PayloadReading:
+        """The latest payload readings (the fields a message brought are added to :attr:`readings`)."""
+        return PayloadReading(lift_rad=self.lift_rad, tilt_rad=self.tilt_rad, lift_torque_nm=self.lift_torque_nm,
+                              tilt_torque_nm=self.tilt_torque_nm, chassis_pitch_rad=self.chassis_pitch_rad)
+
     def _measurements(self) -> Measurements:
         if self.config.payload.source == "topic":
             mass = max(self.reported_mass_kg, 0.0)
         else:
-            take = self.means.take
-            mass = float(self.mass_from_torque(take("lift_torque"), take("tilt_torque"), take("lift_rad"),
-                                               take("tilt_rad"), take("pitch")))
+            mean = self.readings.take()
+            mass = float(self.mass_from_torque(self.readings.latest if mean is None else mean))
         return Measurements(mass_kg=mass if math.isfinite(mass) else 0.0, pile_distance_m=self.range_m,
                             speed_mps=self.speed_mps, lift_rad=self.lift_rad, tilt_rad=self.tilt_rad)
 
@@ -362,7 +347,7 @@ class ControllerCore:
             if not np.all(np.isfinite(state)):
                 raise ValueError(f"state is not finite: {state.tolist()}")
             action = validate_action(self.policy.act(state))
-        except Exception as error:  # a broken policy stops the robot; it never crashes the node
+        except Exception as error:
             self._log_transition("fault", f"policy error: {error}")
             episode.previous = None
             return self._stopped("fault", f"policy error: {error}")
@@ -394,19 +379,13 @@ class ControllerCore:
     def _start_episode(self, now: float) -> None:
         self._start_requested = False
         self.policy.reset()
-        self.means.restart()
+        self.readings.restart()
         arm = self._start_arm()
         targets = np.clip([0.0, *arm], self.task_limits.low, self.task_limits.high)
         index = self.episodes_done
-        meta = {
-            "source": "ros controller", "policy": self.policy_name, "autoscoop_version": __version__,
-            "episode": index, "wall_time_start": time.time(),
-            "pile": {"angle_deg": self.task.pile.angle_deg, "n_particles": self.task.pile.n_particles,
-                     "radius_m": self.task.pile.radius_m},
-            "terminal_point_m": [self.task.reward.terminal_dx_m, self.task.reward.terminal_z_m],
-            "control_period_s": self.period_s, "time_limit_s": self.config.control.episode_s,
-            "robot_config": self.config.to_dict(), "config": self.task.to_dict(),
-        }
+        meta = episode_meta(self.task, control_period_s=self.period_s, time_limit_s=self.config.control.episode_s,
+                            source="ros controller", policy=self.policy_name, episode=index,
+                            wall_time_start=time.time(), robot_config=self.config.to_dict())
         self.episode = _Episode(index=index, start=now, record=EpisodeRecord(meta=meta), targets=targets)
         self.last_command = np.array([0.0 if self.last_command is None else self.last_command[0], *targets[1:]])
         self.log("info", f"scoop {index} started ({self.policy_name}), arm targets from lift {targets[1]:.3f}, "
@@ -427,7 +406,8 @@ class ControllerCore:
         self.episode.record.append(
             time_s=now - self.episode.start, state=state.astype(float), action=action, reward=nan,
             reward_progress=nan, reward_mass=nan, particles_in_bucket=nan, mass_in_bucket_kg=nan,
-            lift_rad=self.lift_rad, tilt_rad=self.tilt_rad, lift_torque_nm=self.lift_torque_nm, tilt_torque_nm=self.torque_nm,
+            lift_rad=self.lift_rad, tilt_rad=self.tilt_rad, lift_torque_nm=self.lift_torque_nm,
+            tilt_torque_nm=self.tilt_torque_nm,
             tip_world_m=[nan, nan, nan],
             penetrating=is_penetrating(self.range_m + self.task.pile.radius_m, self.task.reward))
 
@@ -435,11 +415,12 @@ class ControllerCore:
         episode, self.episode = self.episode, None
         self.episodes_done += 1
         rated = self.config.payload.rated_load_kg
+        unmeasured: Any = math.nan  # the robot counts no particles: particles and spilled are NaN, not counts
+        outcome = EpisodeOutcome(seed=-1, fill_factor=episode.mass_kg / rated, mass_kg=episode.mass_kg,
+                                 particles=unmeasured, success=False, cycle_time_s=None, spilled=unmeasured,
+                                 physics_error=False, steps=len(episode.record), episode_return=math.nan)
         episode.record.meta["outcome"] = {
-            "fill_factor": episode.mass_kg / rated, "mass_kg": episode.mass_kg, "particles": math.nan,
-            "success": False, "cycle_time_s": None, "spilled": math.nan, "physics_error": False,
-            "steps": len(episode.record), "episode_return": math.nan, "ended": why, "faults": episode.faults,
-            "duration_s": now - episode.start,
+            **outcome.as_dict(), "ended": why, "faults": episode.faults, "duration_s": now - episode.start,
             "note": "the robot's own view: mass is the payload estimate, penetrating is judged from pile_range; "
                     "success and spillage are not measured",
         }
@@ -464,7 +445,7 @@ class ControllerCore:
             a = np.asarray(values)
             if len(a):
                 out[name] = {"median": float(np.median(a)), "p99": float(np.percentile(a, 99)),
-                             "max": float(a.max()), "n": int(len(a))}
+                             "max": float(a.max()), "n": len(a)}
         return out
 
     def close(self, now: float) -> None:

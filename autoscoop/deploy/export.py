@@ -18,9 +18,9 @@ from typing import Any
 
 import numpy as np
 
-from autoscoop.core.version import __version__
 from autoscoop.agents.onnx_policy import INPUT_NAME, ONNX_FORMAT, OUTPUT_NAME, OnnxPolicy
 from autoscoop.core.state import ACTION_NAMES, STATE_NAMES, STATE_SIZE
+from autoscoop.core.version import __version__
 
 OPSET = 17
 """ONNX opset: 17 has LayerNormalization as one operator."""

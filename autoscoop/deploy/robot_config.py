@@ -18,152 +18,159 @@ naming the dotted key and what is allowed (as :mod:`autoscoop.core.config` does 
 
 from __future__ import annotations
 
-import dataclasses
-import math
 import re
-from dataclasses import dataclass, field
+from collections.abc import Mapping
 from pathlib import Path
-from typing import Any, Mapping
+from typing import Any, Literal, Self
 
 import numpy as np
 import yaml
+from pydantic import Field, ValidationInfo, field_validator, model_validator
 
 from autoscoop.core import kinematics
-from autoscoop.core.config import ConfigError, _field, _Section
-
-_BOOL = (True, False)
+from autoscoop.core.config import ConfigError, ConfigModel, numbers, setting
 
 
-@dataclass(frozen=True)
-class ControlSection(_Section):
+class ControlSection(ConfigModel):
     """Timing of the control loop and of an episode."""
 
-    _section = "control"
-    control_period_s: float = _field(0.25, "s", "time between policy steps (the policy's training period)", 0.02, 1.0)
-    input_timeout_s: float = _field(0.5, "s", "an input older than this stops the robot (watchdog)", 0.02, 5.0)
-    episode_s: float = _field(8.0, "s", "a scoop ends after this long (the training episode limit)", 0.5, 600.0)
-    start_pose_tolerance_rad: float = _field(0.05, "rad", "a scoop's arm targets start at the task's start pose "
-                                                          "(robot.start_lift_rad, start_tilt_rad) when both joints "
-                                                          "are this close to it, else at the measured angles",
-                                             0.0, 1.5)
-    auto_start: bool = _field(False, "-", "start the first scoop as soon as every input is fresh, "
-                                          "without waiting for the scoop topic", choices=_BOOL)
+    section = "control"
+    control_period_s: float = setting(0.25, "s", "time between policy steps (the policy's training period)", 0.02, 1.0)
+    input_timeout_s: float = setting(0.5, "s", "an input older than this stops the robot (watchdog)", 0.02, 5.0)
+    episode_s: float = setting(8.0, "s", "a scoop ends after this long (the training episode limit)", 0.5, 600.0)
+    start_pose_tolerance_rad: float = setting(0.05, "rad", "a scoop's arm targets start at the task's start pose "
+                                                           "(robot.start_lift_rad, start_tilt_rad) when both joints "
+                                                           "are this close to it, else at the measured angles",
+                                              0.0, 1.5)
+    auto_start: bool = setting(False, "-", "start the first scoop as soon as every input is fresh, "
+                                           "without waiting for the scoop topic")
 
 
-@dataclass(frozen=True)
-class LimitsSection(_Section):
+class LimitsSection(ConfigModel):
     """Limits every published command is clamped to (the robot's, at most the model's)."""
 
-    _section = "limits"
-    max_speed_mps: float = _field(0.1, "m/s", "drive speed limit, forward and back", 0.0, 0.5)
-    max_accel_mps2: float = _field(0.8, "m/s^2", "largest change of the commanded speed per second (a stop is "
-                                                 "never limited)", 0.01, 10.0)
-    lift_min_rad: float = _field(kinematics.LIFT_RANGE_RAD[0], "rad", "lowest lift command (arm highest)",
-                                 *kinematics.LIFT_RANGE_RAD)
-    lift_max_rad: float = _field(kinematics.LIFT_RANGE_RAD[1], "rad", "highest lift command (arm lowest)",
-                                 *kinematics.LIFT_RANGE_RAD)
-    tilt_min_rad: float = _field(kinematics.TILT_RANGE_RAD[0], "rad", "lowest tilt command (bucket curled)",
-                                 *kinematics.TILT_RANGE_RAD)
-    tilt_max_rad: float = _field(kinematics.TILT_RANGE_RAD[1], "rad", "highest tilt command (edge down)",
-                                 *kinematics.TILT_RANGE_RAD)
-    lift_rate_radps: float = _field(0.4, "rad/s", "fastest change of the lift command", 0.01, 3.0)
-    tilt_rate_radps: float = _field(1.0, "rad/s", "fastest change of the tilt command", 0.01, 5.0)
+    section = "limits"
+    max_speed_mps: float = setting(0.1, "m/s", "drive speed limit, forward and back", 0.0, 0.5)
+    max_accel_mps2: float = setting(0.8, "m/s^2", "largest change of the commanded speed per second (a stop is "
+                                                  "never limited)", 0.01, 10.0)
+    lift_min_rad: float = setting(kinematics.LIFT_RANGE_RAD[0], "rad", "lowest lift command (arm highest)",
+                                  *kinematics.LIFT_RANGE_RAD)
+    lift_max_rad: float = setting(kinematics.LIFT_RANGE_RAD[1], "rad", "highest lift command (arm lowest)",
+                                  *kinematics.LIFT_RANGE_RAD)
+    tilt_min_rad: float = setting(kinematics.TILT_RANGE_RAD[0], "rad", "lowest tilt command (bucket curled)",
+                                  *kinematics.TILT_RANGE_RAD)
+    tilt_max_rad: float = setting(kinematics.TILT_RANGE_RAD[1], "rad", "highest tilt command (edge down)",
+                                  *kinematics.TILT_RANGE_RAD)
+    lift_rate_radps: float = setting(0.4, "rad/s", "fastest change of the lift command", 0.01, 3.0)
+    tilt_rate_radps: float = setting(1.0, "rad/s", "fastest change of the tilt command", 0.01, 5.0)
+
+    @model_validator(mode="after")
+    def _min_below_max(self) -> Self:
+        for joint in ("lift", "tilt"):
+            low, high = getattr(self, f"{joint}_min_rad"), getattr(self, f"{joint}_max_rad")
+            if not low < high:
+                raise ConfigError(f"limits.{joint}_min_rad = {low} must be below limits.{joint}_max_rad = {high}")
+        return self
 
 
-@dataclass(frozen=True)
-class SensorsSection(_Section):
+class SensorsSection(ConfigModel):
     """What a plausible reading is; anything else stops the robot like a stale input."""
 
-    _section = "sensors"
-    lift_joint: str = _field("lift", "-", "name of the lift joint in joint_states")
-    tilt_joint: str = _field("tilt", "-", "name of the tilt joint in joint_states")
-    joint_margin_rad: float = _field(0.05, "rad", "a joint reading this far outside its range is a sensor fault",
-                                     0.0, 0.5)
-    max_speed_reading_mps: float = _field(1.0, "m/s", "an odometry speed above this is a sensor fault", 0.05, 10.0)
-    max_range_m: float = _field(10.0, "m", "a pile_range reading above this (or above the message's max_range) is "
-                                          "no reading", 0.1, 100.0)
-    max_torque_nm: float = _field(200.0, "N*m", "a joint torque reading above this (either sign) is a sensor fault",
-                                  1.0, 5000.0)
+    section = "sensors"
+    lift_joint: str = setting("lift", "-", "name of the lift joint in joint_states")
+    tilt_joint: str = setting("tilt", "-", "name of the tilt joint in joint_states")
+    joint_margin_rad: float = setting(0.05, "rad", "a joint reading this far outside its range is a sensor fault",
+                                      0.0, 0.5)
+    max_speed_reading_mps: float = setting(1.0, "m/s", "an odometry speed above this is a sensor fault", 0.05, 10.0)
+    max_range_m: float = setting(10.0, "m", "a pile_range reading above this (or above the message's max_range) is "
+                                            "no reading", 0.1, 100.0)
+    max_torque_nm: float = setting(200.0, "N*m", "a joint torque reading above this (either sign) is a sensor fault",
+                                   1.0, 5000.0)
+
+    @model_validator(mode="after")
+    def _two_joints(self) -> Self:
+        if self.lift_joint == self.tilt_joint or not self.lift_joint or not self.tilt_joint:
+            raise ConfigError(f"sensors.lift_joint and sensors.tilt_joint must be two different non-empty names, got "
+                              f"{self.lift_joint!r} and {self.tilt_joint!r}")
+        return self
 
 
-@dataclass(frozen=True)
-class EstopSection(_Section):
+class EstopSection(ConfigModel):
     """The software stop topic (never a substitute for the hardware emergency stop)."""
 
-    _section = "estop"
-    required: bool = _field(False, "-", "refuse to move until an estop=false message arrives, and stop when "
-                                        "estop messages go stale (a heartbeat)", choices=_BOOL)
+    section = "estop"
+    required: bool = setting(False, "-", "refuse to move until an estop=false message arrives, and stop when "
+                                         "estop messages go stale (a heartbeat)")
 
 
-@dataclass(frozen=True)
-class PayloadSection(_Section):
+class PayloadSection(ConfigModel):
     """The state's payload mass: from the joint torques (autoscoop.core.payload, paper eq. 8 or eq. 4), or reported."""
 
-    _section = "payload"
-    source: str = _field("torque", "-", "mass from the joint torques through the estimator (torque), or as "
-                                        "reported on payload_mass by a load cell or the simulator (topic)",
-                         choices=("torque", "topic"))
-    method: str = _field("eq8", "-", "torque estimator: eq8 (lift_torque and bucket_torque, the arm's static "
-                                     "equilibrium, as in training) or eq4 (bucket_torque alone, the paper's "
-                                     "lever-arm formula; far more sensitive to the pile's push)",
-                         choices=("eq8", "eq4"))
-    calibration: str = _field("", "-", "payload calibration YAML (autoscoop payload calibrate); empty: nominal")
-    rated_load_kg: float = _field(7.0, "kg", "rated bucket load: the state's w = mass / rated load", 0.1, 100.0)
-    empty_below_kg: float = _field(0.35, "kg", "estimates below this read 0: the estimate's swing with an empty "
-                                               "bucket while driving (+-0.65 kg in simulation)", 0.0, 5.0)
+    section = "payload"
+    source: Literal["torque", "topic"] = setting(
+        "torque", "-", "mass from the joint torques through the estimator (torque), or as reported on "
+        "payload_mass by a load cell or the simulator (topic)")
+    method: Literal["eq8", "eq4"] = setting(
+        "eq8", "-", "torque estimator: eq8 (lift_torque and bucket_torque, the arm's static equilibrium, as in "
+        "training) or eq4 (bucket_torque alone, the paper's lever-arm formula; far more sensitive to the pile's push)")
+    calibration: str = setting("", "-", "payload calibration YAML (autoscoop payload calibrate); empty: nominal")
+    rated_load_kg: float = setting(7.0, "kg", "rated bucket load: the state's w = mass / rated load", 0.1, 100.0)
+    empty_below_kg: float = setting(0.35, "kg", "estimates below this read 0: the estimate's swing with an empty "
+                                                "bucket while driving (+-0.65 kg in simulation)", 0.0, 5.0)
+
+    @field_validator("calibration")
+    @classmethod
+    def _calibration_file_exists(cls, path: str) -> str:
+        if path and not Path(path).is_file():
+            raise ValueError("is not a file")
+        return path
 
 
-TOPIC_DEFAULTS = {
-    "joint_states": "joint_states", "odom": "odom", "pile_range": "pile_range", "bucket_torque": "bucket_torque",
-    "lift_torque": "lift_torque", "payload_mass": "payload_mass", "estop": "estop", "scoop": "scoop", "cmd_vel": "cmd_vel",
-    "lift_command": "lift_controller/command", "tilt_command": "tilt_controller/command",
-}
-_TOPIC_DOCS = {
-    "joint_states": "sensor_msgs/JointState in: lift and tilt positions (rad, or raw potentiometer readings)",
-    "odom": "nav_msgs/Odometry in: twist.twist.linear.x is the forward speed (m/s)",
-    "pile_range": "sensor_msgs/Range in: distance from the bucket tip to the pile (m)",
-    "bucket_torque": "std_msgs/Float64 in: torque at the tilt joint (N*m)",
-    "lift_torque": "std_msgs/Float64 in: torque at the lift joint (N*m), used by payload.method = eq8",
-    "payload_mass": "std_msgs/Float64 in: mass in the bucket (kg), used when payload.source = topic",
-    "estop": "std_msgs/Bool in: true stops the robot until false",
-    "scoop": "std_msgs/Bool in: true starts a scoop, false ends it",
-    "cmd_vel": "geometry_msgs/Twist out: linear.x forward speed (m/s)",
-    "lift_command": "std_msgs/Float64 out: lift position command (rad)",
-    "tilt_command": "std_msgs/Float64 out: tilt position command (rad)",
-}
 _GRAPH_NAME = re.compile(r"^~?/?[A-Za-z][A-Za-z0-9_]*(/[A-Za-z][A-Za-z0-9_]*)*$")
 
 
-@dataclass(frozen=True)
-class TopicsSection:
+class TopicsSection(ConfigModel):
     """Topic names; relative by default so that a launch file (or ``name:=new``) can remap them."""
 
-    joint_states: str = TOPIC_DEFAULTS["joint_states"]
-    odom: str = TOPIC_DEFAULTS["odom"]
-    pile_range: str = TOPIC_DEFAULTS["pile_range"]
-    bucket_torque: str = TOPIC_DEFAULTS["bucket_torque"]
-    lift_torque: str = TOPIC_DEFAULTS["lift_torque"]
-    payload_mass: str = TOPIC_DEFAULTS["payload_mass"]
-    estop: str = TOPIC_DEFAULTS["estop"]
-    scoop: str = TOPIC_DEFAULTS["scoop"]
-    cmd_vel: str = TOPIC_DEFAULTS["cmd_vel"]
-    lift_command: str = TOPIC_DEFAULTS["lift_command"]
-    tilt_command: str = TOPIC_DEFAULTS["tilt_command"]
+    section = "topics"
+    joint_states: str = setting("joint_states", "-", "sensor_msgs/JointState in: lift and tilt positions (rad, or "
+                                                     "raw potentiometer readings)")
+    odom: str = setting("odom", "-", "nav_msgs/Odometry in: twist.twist.linear.x is the forward speed (m/s)")
+    pile_range: str = setting("pile_range", "-", "sensor_msgs/Range in: distance from the bucket tip to the pile (m)")
+    bucket_torque: str = setting("bucket_torque", "-", "std_msgs/Float64 in: torque at the tilt joint (N*m)")
+    lift_torque: str = setting("lift_torque", "-", "std_msgs/Float64 in: torque at the lift joint (N*m), used by "
+                                                   "payload.method = eq8")
+    payload_mass: str = setting("payload_mass", "-", "std_msgs/Float64 in: mass in the bucket (kg), used when "
+                                                     "payload.source = topic")
+    estop: str = setting("estop", "-", "std_msgs/Bool in: true stops the robot until false")
+    scoop: str = setting("scoop", "-", "std_msgs/Bool in: true starts a scoop, false ends it")
+    cmd_vel: str = setting("cmd_vel", "-", "geometry_msgs/Twist out: linear.x forward speed (m/s)")
+    lift_command: str = setting("lift_controller/command", "-", "std_msgs/Float64 out: lift position command (rad)")
+    tilt_command: str = setting("tilt_controller/command", "-", "std_msgs/Float64 out: tilt position command (rad)")
 
-    def __post_init__(self) -> None:
-        names = {}
-        for f in dataclasses.fields(self):
-            value = getattr(self, f.name)
-            if not isinstance(value, str) or not _GRAPH_NAME.match(value):
-                raise ConfigError(f"topics.{f.name} = {value!r} is not a valid ROS name (letters, digits, _ and /, "
-                                  f"starting with a letter); default {TOPIC_DEFAULTS[f.name]!r}")
+    @field_validator("*")
+    @classmethod
+    def _ros_name(cls, name: str, info: ValidationInfo) -> str:
+        if not _GRAPH_NAME.match(name):
+            raise ValueError(f"is not a valid ROS name (letters, digits, _ and /, starting with a letter); "
+                             f"default {TOPIC_DEFAULTS[info.field_name]!r}")
+        return name
+
+    @model_validator(mode="after")
+    def _one_topic_each(self) -> Self:
+        names: dict[str, str] = {}
+        for key, value in self.to_dict().items():
             if value in names:
-                raise ConfigError(f"topics.{f.name} and topics.{names[value]} are both {value!r}; each needs its own")
-            names[value] = f.name
+                raise ConfigError(f"topics.{key} and topics.{names[value]} are both {value!r}; each needs its own")
+            names[value] = key
+        return self
 
 
-@dataclass(frozen=True)
-class PotentiometerCalibration:
+TOPIC_DEFAULTS = {name: f.default for name, f in TopicsSection.model_fields.items()}
+"""Default name of each topic, by key."""
+
+
+class PotentiometerCalibration(ConfigModel):
     """A joint's raw potentiometer reading <-> angle, piecewise linear through measured points.
 
     Outside the measured span the end segments are extended (the joint-range check then catches a
@@ -171,34 +178,32 @@ class PotentiometerCalibration:
 
     Attributes:
         raw: readings at the calibration points (any unit the driver reports), strictly monotonic.
-        rad: joint angles at those points, rad, strictly monotonic.
+        rad: joint angles at those points, rad, strictly monotonic, as many as ``raw``.
     """
 
-    raw: tuple[float, ...]
-    rad: tuple[float, ...]
+    raw: numbers() = setting(..., "-", "readings at the calibration points, strictly monotonic", min_length=2)
+    rad: numbers() = setting(..., "rad", "joint angles at those points, strictly monotonic", min_length=2)
+
+    @field_validator("raw", "rad")
+    @classmethod
+    def _monotonic(cls, points: tuple[float, ...]) -> tuple[float, ...]:
+        steps = np.diff(np.asarray(points, dtype=float))
+        if not (np.all(steps > 0) or np.all(steps < 0)):
+            raise ValueError("must be strictly increasing or strictly decreasing")
+        return points
+
+    @field_validator("rad")
+    @classmethod
+    def _as_many_as_raw(cls, rad: tuple[float, ...], info: ValidationInfo) -> tuple[float, ...]:
+        raw = info.data.get("raw")
+        if raw is not None and len(raw) != len(rad):
+            raise ValueError(f"must have the same length as raw ({len(raw)} points)")
+        return rad
 
     @classmethod
-    def parse(cls, key: str, data: Any) -> "PotentiometerCalibration | None":
+    def parse(cls, key: str, data: Any) -> PotentiometerCalibration | None:
         """From the YAML mapping ``{raw: [...], rad: [...]}``; ``None`` for null (already radians)."""
-        if data is None:
-            return None
-        if not isinstance(data, Mapping) or set(data) != {"raw", "rad"}:
-            raise ConfigError(f"{key} must be null or a mapping {{raw: [...], rad: [...]}}, got {data!r}")
-        values = {}
-        for name in ("raw", "rad"):
-            seq = data[name]
-            if not isinstance(seq, (list, tuple)) or len(seq) < 2:
-                raise ConfigError(f"{key}.{name} must be a list of at least 2 numbers, got {seq!r}")
-            if any(isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) for v in seq):
-                raise ConfigError(f"{key}.{name} must hold finite numbers only, got {seq!r}")
-            steps = np.diff(np.asarray(seq, dtype=float))
-            if not (np.all(steps > 0) or np.all(steps < 0)):
-                raise ConfigError(f"{key}.{name} must be strictly increasing or strictly decreasing, got {seq!r}")
-            values[name] = tuple(float(v) for v in seq)
-        if len(values["raw"]) != len(values["rad"]):
-            raise ConfigError(f"{key}.raw and {key}.rad must have the same length, got "
-                              f"{len(values['raw'])} and {len(values['rad'])}")
-        return cls(values["raw"], values["rad"])
+        return None if data is None else cls.from_dict(data, prefix=key)
 
     def to_rad(self, reading: float) -> float:
         """Angle (rad) of a raw reading."""
@@ -217,104 +222,62 @@ def _piecewise(x: float, xs: tuple[float, ...], ys: tuple[float, ...]) -> float:
     return float(yp[i] + (x - xp[i]) * (yp[i + 1] - yp[i]) / (xp[i + 1] - xp[i]))
 
 
-SECTIONS = {"control": ControlSection, "limits": LimitsSection, "sensors": SensorsSection, "estop": EstopSection,
-            "payload": PayloadSection, "topics": TopicsSection}
+_CALIBRATION_DOC = "null (readings in radians) or {raw: [...], rad: [...]}: reading <-> angle, piecewise linear"
 
 
-@dataclass(frozen=True)
-class RobotNodeConfig:
+class PotentiometerSection(ConfigModel):
+    """The joints' potentiometer calibrations; null: that joint's joint_states are already in radians."""
+
+    section = "potentiometer"
+    lift: PotentiometerCalibration | None = setting(None, "-", f"lift joint: {_CALIBRATION_DOC}")
+    tilt: PotentiometerCalibration | None = setting(None, "-", f"tilt joint: {_CALIBRATION_DOC}")
+
+    @model_validator(mode="before")
+    @classmethod
+    def _lift_and_tilt_only(cls, data: Any) -> Any:
+        if not isinstance(data, Mapping) or set(data) - {"lift", "tilt"}:
+            raise ConfigError(f"potentiometer must be a mapping with keys lift and/or tilt, got {data!r}")
+        return data
+
+
+class RobotNodeConfig(ConfigModel):
     """Everything the controller node needs to know about the robot; validated when built."""
 
-    control: ControlSection = field(default_factory=ControlSection)
-    limits: LimitsSection = field(default_factory=LimitsSection)
-    sensors: SensorsSection = field(default_factory=SensorsSection)
-    estop: EstopSection = field(default_factory=EstopSection)
-    payload: PayloadSection = field(default_factory=PayloadSection)
-    topics: TopicsSection = field(default_factory=TopicsSection)
-    lift_potentiometer: PotentiometerCalibration | None = None
-    tilt_potentiometer: PotentiometerCalibration | None = None
+    label = "robot config"
+    control: ControlSection = Field(default_factory=ControlSection, description="the control loop")
+    limits: LimitsSection = Field(default_factory=LimitsSection, description="command limits")
+    sensors: SensorsSection = Field(default_factory=SensorsSection, description="plausible readings")
+    estop: EstopSection = Field(default_factory=EstopSection, description="the software stop")
+    payload: PayloadSection = Field(default_factory=PayloadSection, description="the payload mass")
+    topics: TopicsSection = Field(default_factory=TopicsSection, description="topic names")
+    potentiometers: PotentiometerSection = Field(default_factory=PotentiometerSection, alias="potentiometer",
+                                                 description="joint reading calibrations (YAML key: potentiometer)")
 
-    def __post_init__(self) -> None:
-        lim = self.limits
-        for joint in ("lift", "tilt"):
-            low, high = getattr(lim, f"{joint}_min_rad"), getattr(lim, f"{joint}_max_rad")
-            if not low < high:
-                raise ConfigError(f"limits.{joint}_min_rad = {low} must be below limits.{joint}_max_rad = {high}")
-        for key, value in (("sensors.lift_joint", self.sensors.lift_joint),
-                           ("sensors.tilt_joint", self.sensors.tilt_joint),
-                           ("payload.calibration", self.payload.calibration)):
-            if not isinstance(value, str):
-                raise ConfigError(f"{key} = {value!r} must be a string")
-        if self.sensors.lift_joint == self.sensors.tilt_joint or not self.sensors.lift_joint \
-                or not self.sensors.tilt_joint:
-            raise ConfigError(f"sensors.lift_joint and sensors.tilt_joint must be two different non-empty names, got "
-                              f"{self.sensors.lift_joint!r} and {self.sensors.tilt_joint!r}")
+    @model_validator(mode="after")
+    def _timeout_fits_the_period(self) -> Self:
         if self.control.input_timeout_s < self.control.control_period_s / 10:
             raise ConfigError(f"control.input_timeout_s = {self.control.input_timeout_s} s is shorter than a tenth of "
                               f"control.control_period_s = {self.control.control_period_s} s")
-        if self.payload.calibration and not Path(self.payload.calibration).is_file():
-            raise ConfigError(f"payload.calibration = {self.payload.calibration!r}: no such file")
+        return self
+
+    @property
+    def lift_potentiometer(self) -> PotentiometerCalibration | None:
+        """The lift joint's calibration, or ``None`` (readings already in radians)."""
+        return self.potentiometers.lift
+
+    @property
+    def tilt_potentiometer(self) -> PotentiometerCalibration | None:
+        """The tilt joint's calibration, or ``None`` (readings already in radians)."""
+        return self.potentiometers.tilt
 
     def potentiometer(self, joint: str) -> PotentiometerCalibration | None:
         """The calibration of ``lift`` or ``tilt``, or ``None`` (readings already in radians)."""
-        return getattr(self, f"{joint}_potentiometer")
-
-    def to_dict(self) -> dict[str, Any]:
-        """Plain nested dict, as in the YAML."""
-        out: dict[str, Any] = {name: dataclasses.asdict(getattr(self, name)) for name in SECTIONS}
-        pots = (("lift", self.lift_potentiometer), ("tilt", self.tilt_potentiometer))
-        out["potentiometer"] = {joint: (None if cal is None else {"raw": list(cal.raw), "rad": list(cal.rad)})
-                                for joint, cal in pots}
-        return out
-
-    def describe(self) -> str:
-        """Every key with its value, unit, allowed range and meaning."""
-        rows = []
-        for section, cls in SECTIONS.items():
-            for f in dataclasses.fields(cls):
-                value = getattr(getattr(self, section), f.name)
-                key = f"{section}.{f.name}"
-                if cls is TopicsSection:
-                    rows.append(f"{key:<30} {value!s:<33} {_TOPIC_DOCS[f.name]}")
-                    continue
-                meta = f.metadata
-                allowed = (f"{list(meta['choices'])}" if meta["choices"] else "text" if isinstance(f.default, str)
-                           else f"[{meta['low']}, {meta['high']}]")
-                rows.append(f"{key:<30} {value!s:<10} {meta['unit']:<6} {allowed:<16} {meta['doc']}")
-        rows.append("potentiometer.lift, potentiometer.tilt: null (radians) or {raw: [...], rad: [...]}")
-        return "\n".join(rows)
+        return getattr(self.potentiometers, joint)
 
 
 def robot_config_from_dict(data: Mapping[str, Any]) -> RobotNodeConfig:
     """Build a validated config from a nested dict (missing keys take defaults)."""
-    if not isinstance(data, Mapping):
-        raise ConfigError(f"robot config must be a mapping of sections, got {type(data).__name__}")
-    known = [*SECTIONS, "potentiometer"]
-    unknown = set(data) - set(known)
-    if unknown:
-        raise ConfigError(f"unknown robot config section(s) {sorted(unknown)}; known: {known}")
-    parts: dict[str, Any] = {}
-    for section, cls in SECTIONS.items():
-        values = data.get(section) or {}
-        if not isinstance(values, Mapping):
-            raise ConfigError(f"robot config section {section!r} must be a mapping, got {values!r}")
-        values = dict(values)
-        names = [f.name for f in dataclasses.fields(cls)]
-        bad = set(values) - set(names)
-        if bad:
-            raise ConfigError(f"unknown robot config key(s) {sorted(f'{section}.{b}' for b in bad)}; "
-                              f"known in {section}: {names}")
-        for f in dataclasses.fields(cls):
-            if f.name in values and isinstance(f.default, float) and isinstance(values[f.name], int) \
-                    and not isinstance(values[f.name], bool):
-                values[f.name] = float(values[f.name])
-        parts[section] = cls(**values)
-    pots = data.get("potentiometer") or {}
-    if not isinstance(pots, Mapping) or set(pots) - {"lift", "tilt"}:
-        raise ConfigError(f"potentiometer must be a mapping with keys lift and/or tilt, got {pots!r}")
-    for joint in ("lift", "tilt"):
-        parts[f"{joint}_potentiometer"] = PotentiometerCalibration.parse(f"potentiometer.{joint}", pots.get(joint))
-    return RobotNodeConfig(**parts)
+    return RobotNodeConfig.from_dict(data)
 
 
 def load_robot_config(path: str | Path | None) -> RobotNodeConfig:

@@ -22,11 +22,11 @@ from typing import Any
 import numpy as np
 
 from autoscoop.core.config import ScoopConfig
-from autoscoop.deploy.robot_config import RobotNodeConfig
-from autoscoop.envs.scoop import make_scoop_env
-from autoscoop.evaluation.evaluate import EpisodeResult
 from autoscoop.core.payload import pitch_from_quaternion
 from autoscoop.core.state import CommandLimits, advance_targets, servo_rate
+from autoscoop.deploy.robot_config import RobotNodeConfig
+from autoscoop.envs.outcome import EpisodeOutcome
+from autoscoop.envs.scoop import make_scoop_env
 
 MIN_SENSOR_PERIOD_S = 0.02
 """Sensors are published at most this often: every physics step, or every few when steps are shorter."""
@@ -65,7 +65,7 @@ class SensorReadings:
         joint_positions: lift and tilt readings: rad, or raw where the robot config calibrates a potentiometer.
         speed_mps: forward speed from wheel odometry, m/s.
         range_m: distance from the bucket tip to the pile, m.
-        torque_nm: torque at the tilt (bucket) joint, N*m.
+        tilt_torque_nm: torque at the tilt (bucket) joint, N*m.
         lift_torque_nm: torque at the lift joint, N*m.
         payload_kg: mass of the particles inside the bucket, kg (what a perfect load cell would report).
         chassis_xyz_m: chassis centre in the world (pile) frame, m (for the odometry pose).
@@ -77,7 +77,7 @@ class SensorReadings:
     joint_positions: tuple[float, float]
     speed_mps: float
     range_m: float
-    torque_nm: float
+    tilt_torque_nm: float
     lift_torque_nm: float
     payload_kg: float
     chassis_xyz_m: tuple[float, float, float]
@@ -199,20 +199,16 @@ class SimBridge:
         return SensorReadings(
             time_s=sim.elapsed_s, joint_names=(self.robot.sensors.lift_joint, self.robot.sensors.tilt_joint),
             joint_positions=(float(positions[0]), float(positions[1])), speed_mps=float(speed), range_m=distance,
-            torque_nm=float(torque), lift_torque_nm=float(lift_torque), payload_kg=float(info.get("mass_in_bucket_kg", 0.0)),
+            tilt_torque_nm=float(torque), lift_torque_nm=float(lift_torque), payload_kg=float(info.get("mass_in_bucket_kg", 0.0)),
             chassis_xyz_m=tuple(float(v) for v in position),
             chassis_quat_wxyz=tuple(float(v) for v in quat))
 
-    def result(self) -> EpisodeResult:
-        """The episode's metrics, as ``autoscoop eval`` reports them (``steps`` in control periods)."""
+    def result(self) -> EpisodeOutcome:
+        """The episode's metrics, as ``autoscoop eval`` reports them (``steps`` in control periods; no return)."""
         info = self._info
         period = self.task_config.env.control_period_s
-        return EpisodeResult(
-            seed=self.seed, fill_factor=float(info.get("fill_factor", 0.0)),
-            mass_kg=float(info.get("mass_in_bucket_kg", 0.0)), particles=int(info.get("particles_in_bucket", 0)),
-            success=bool(info.get("success", False)), cycle_time_s=float(info.get("cycle_time_s", math.nan)),
-            spilled=int(info.get("spilled", 0)), physics_error=bool(info.get("physics_error", False)),
-            steps=int(round(float(info.get("elapsed_s", 0.0)) / period)), episode_return=math.nan)
+        steps = int(round(float(info.get("elapsed_s", 0.0)) / period))
+        return EpisodeOutcome.from_info(info, seed=self.seed, steps=steps, episode_return=math.nan)
 
     def close(self) -> None:
         """Free the simulator."""
@@ -249,7 +245,7 @@ class DelayLine:
         self._heap.clear()
 
 
-def run_without_ros(bridge: SimBridge, core: Any, seed: int, start_s: float = 0.0) -> tuple[EpisodeResult, float]:
+def run_without_ros(bridge: SimBridge, core: Any, seed: int, start_s: float = 0.0) -> tuple[EpisodeOutcome, float]:
     """One episode of ``core`` (a :class:`~autoscoop.deploy.controller.ControllerCore`) against the
     simulator in one process, on simulated time: the ROS loop without its transport.
 
@@ -272,7 +268,7 @@ def run_without_ros(bridge: SimBridge, core: Any, seed: int, start_s: float = 0.
         core.joint_states(r.joint_names, r.joint_positions, now)
         core.odometry(r.speed_mps, now, pitch_from_quaternion(*r.chassis_quat_wxyz))
         core.pile_range(r.range_m, now, 0.0, 4.0)
-        core.bucket_torque(r.torque_nm, now)
+        core.bucket_torque(r.tilt_torque_nm, now)
         core.lift_torque(r.lift_torque_nm, now)
         core.payload_mass(r.payload_kg, now)
         return now

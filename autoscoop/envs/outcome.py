@@ -12,8 +12,9 @@ point in time; spillage = particles that were in the bucket and are not at the e
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from dataclasses import asdict, dataclass
-from typing import Any, Mapping
+from typing import Any
 
 
 @dataclass(frozen=True)
@@ -45,7 +46,7 @@ class EpisodeOutcome:
     episode_return: float
 
     @classmethod
-    def from_info(cls, info: Mapping[str, Any], *, seed: int, steps: int, episode_return: float) -> "EpisodeOutcome":
+    def from_info(cls, info: Mapping[str, Any], *, seed: int, steps: int, episode_return: float) -> EpisodeOutcome:
         """The outcome from the last ``info`` of an episode of ``autoscoop/Scoop-v0`` (or an info of the same keys)."""
         success = bool(info.get("success", False))
         cycle = info.get("cycle_time_s")
@@ -57,7 +58,7 @@ class EpisodeOutcome:
                    steps=int(steps), episode_return=float(episode_return))
 
     @classmethod
-    def from_dict(cls, data: Mapping[str, Any]) -> "EpisodeOutcome":
+    def from_dict(cls, data: Mapping[str, Any]) -> EpisodeOutcome:
         """Read back :meth:`as_dict` (a record's ``outcome`` metadata); a NaN cycle time reads as ``None``."""
         cycle = data.get("cycle_time_s")
         cycle = None if cycle is None or not math.isfinite(float(cycle)) else float(cycle)

@@ -2,7 +2,9 @@
 
 Every step stores the fields in :data:`STEP_FIELDS`; the file also holds a JSON ``meta`` string
 (policy, seed, pile, config, outcome). Evaluation, the ROS controller and manual control all write
-this format; reports, figures and the payload calibration read it.
+this format; reports, figures and the payload calibration read it. The metadata every record shares
+is built by :func:`episode_meta`, so that the simulator's records and the robot's say the same things
+the same way.
 """
 
 from __future__ import annotations
@@ -10,9 +12,14 @@ from __future__ import annotations
 import json
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
+
+from autoscoop.core.version import __version__
+
+if TYPE_CHECKING:
+    from autoscoop.core.config import ScoopConfig
 
 STEP_FIELDS: dict[str, str] = {
     "time_s": "time since the episode start at the end of the step, s",
@@ -30,6 +37,34 @@ STEP_FIELDS: dict[str, str] = {
     "tip_world_m": "bucket tip in the world (pile) frame, (x, y, z) m; NaN where unknown (robot)",
     "penetrating": "paper eq. 7",
 }
+
+
+def episode_meta(config: ScoopConfig, *, control_period_s: float, time_limit_s: float,
+                 pile_angle_deg: float | None = None, **extra: Any) -> dict[str, Any]:
+    """The metadata every episode record carries, after ``extra`` (which it overrides where keys clash).
+
+    Args:
+        config: the task's configuration (the pile, the terminal point; stored whole under ``config``).
+        control_period_s: the controller's period, s.
+        time_limit_s: the episode's time limit, s.
+        pile_angle_deg: this episode's pile angle when it is not ``config.pile.angle_deg`` (a mix of piles).
+        extra: the writer's own keys, first in the dict (``policy``, ``source``, ``seed``, ...).
+
+    Returns:
+        ``extra``, then ``autoscoop_version``, ``pile`` (``angle_deg``, ``n_particles``, ``radius_m``),
+        ``terminal_point_m`` ((dx, z) m), ``control_period_s``, ``time_limit_s`` and ``config``.
+    """
+    pile = config.pile
+    return {
+        **extra,
+        "autoscoop_version": __version__,
+        "pile": {"angle_deg": pile.angle_deg if pile_angle_deg is None else pile_angle_deg,
+                 "n_particles": pile.n_particles, "radius_m": pile.radius_m},
+        "terminal_point_m": [config.reward.terminal_dx_m, config.reward.terminal_z_m],
+        "control_period_s": control_period_s,
+        "time_limit_s": time_limit_s,
+        "config": config.to_dict(),
+    }
 
 
 @dataclass

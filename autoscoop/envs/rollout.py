@@ -7,7 +7,8 @@ need per step they get from an observer, not from a loop of their own.
 
 from __future__ import annotations
 
-from typing import Any, Callable, Iterable
+from collections.abc import Callable, Iterable
+from typing import Any
 
 import numpy as np
 
@@ -17,9 +18,16 @@ from autoscoop.envs.outcome import EpisodeOutcome
 StepObserver = Callable[[int, np.ndarray, np.ndarray, float, dict], None]
 """Called after each step with (step index, observation before the step, action, reward, info)."""
 
+TransitionObserver = Callable[[int, np.ndarray, np.ndarray, float, np.ndarray, bool, bool, dict], None]
+"""Called after each step with the whole transition: (step index, observation before the step, action,
+reward, observation after the step, terminated, truncated, info); for replay buffers, which need the
+last step's next observation and whether the episode ended or was cut off."""
+
 
 def rollout(policy: Policy, env: Any, seed: int, observers: Iterable[StepObserver] = (),
-            options: dict[str, Any] | None = None) -> EpisodeOutcome:
+            options: dict[str, Any] | None = None, *,
+            transition_observers: Iterable[TransitionObserver] = (),
+            stop: Callable[[], bool] | None = None) -> EpisodeOutcome:
     """Run one episode of ``policy`` in ``env`` from ``seed``.
 
     Args:
@@ -28,11 +36,16 @@ def rollout(policy: Policy, env: Any, seed: int, observers: Iterable[StepObserve
         seed: the episode's seed (``env.reset(seed=seed)``).
         observers: called after every step, in order (see :data:`StepObserver`).
         options: passed to ``env.reset``.
+        transition_observers: called after every step, after ``observers``, in order (see
+            :data:`TransitionObserver`).
+        stop: asked after every step, after the observers: ``True`` ends the episode there (a person
+            driving by hand pressed Enter or closed the window); default: only the environment ends it.
 
     Returns:
         The episode's outcome, from the last step's ``info``.
     """
     observers = tuple(observers)
+    transition_observers = tuple(transition_observers)
     obs, info = env.reset(seed=seed, options=options)
     policy.reset()
     total, steps = 0.0, 0
@@ -41,9 +54,11 @@ def rollout(policy: Policy, env: Any, seed: int, observers: Iterable[StepObserve
         next_obs, reward, terminated, truncated, info = env.step(action)
         for observer in observers:
             observer(steps, obs, action, float(reward), info)
+        for transition_observer in transition_observers:
+            transition_observer(steps, obs, action, float(reward), next_obs, bool(terminated), bool(truncated), info)
         obs = next_obs
         total += float(reward)
         steps += 1
-        if terminated or truncated:
+        if terminated or truncated or (stop is not None and stop()):
             break
     return EpisodeOutcome.from_info(info, seed=seed, steps=steps, episode_return=total)

@@ -11,8 +11,8 @@ from gymnasium.wrappers import TimeLimit
 from autoscoop.core import state as state_mod
 from autoscoop.core.config import ScoopConfig
 from autoscoop.core.reward import is_penetrating, scoop_reward
-from autoscoop.sim.scene import ScoopSim
 from autoscoop.core.state import CommandLimits, Measurements
+from autoscoop.sim.scene import ScoopSim
 
 
 class ScoopEnv(gym.Env):
@@ -20,7 +20,7 @@ class ScoopEnv(gym.Env):
 
     The robot starts with its bucket low and level, ``robot.start_gap_m`` in front of the pile's toe.
     Within ``env.max_episode_s`` (8 s) it must drive in, fill the bucket, and lift it clear to the
-    terminal point, which ends the episode with success (paper: Shamshiri et al., IEEE Access 2021).
+    terminal point, which ends the episode with success (paper: Azulay and Shapiro, IEEE Access 2021).
 
     ## Action space
     ``Box(-1, 1, (3,), float32)``. Each action moves its commanded target by ``action * range``,
@@ -119,6 +119,8 @@ class ScoopEnv(gym.Env):
         self._ever_inside[:] = False
         self._previous = None
         self._instabilities = self.sim.instability_count()
+        if self._mass_estimator is not None:  # the last episode's load cell stops observing the sim
+            self._mass_estimator.detach()
         if self.config.env.mass_source == "torque":
             from autoscoop.sim.load_cell import TorqueMassSensor  # noqa: PLC0415 - optional until used
             self._mass_estimator = TorqueMassSensor.for_env(cfg, self.np_random)

@@ -1,8 +1,9 @@
 """Speed of the simulator: raw physics steps, environment steps and real-time factor, on one core.
 
 All three come from the same run: the scripted baseline scoops the default pile; the physics
-steps are timed inside the environment's step, the environment steps around it, and the real-time
-factor is simulated episode time over wall time, resets and the controller included. Every new
+steps are timed inside the environment's step (a substep observer), the environment steps around it
+(from the controller's action to the step's end), and the real-time factor is simulated episode time
+over wall time, resets and the controller included. Every new
 pile variant is settled once before timing starts (that cost is paid once per environment), and
 the measurement is repeated; the median is reported beside every repeat, since a shared virtual
 machine's speed varies from minute to minute.
@@ -10,6 +11,7 @@ machine's speed varies from minute to minute.
 
 from __future__ import annotations
 
+import math
 import os
 import platform
 import statistics
@@ -17,11 +19,14 @@ import time
 from typing import Any
 
 import mujoco
+import numpy as np
 from tqdm import tqdm
 
-from autoscoop.core.version import __version__
 from autoscoop.agents.loading import heuristic_for
 from autoscoop.core.config import ScoopConfig
+from autoscoop.core.policy import Policy
+from autoscoop.core.version import __version__
+from autoscoop.envs.rollout import rollout
 from autoscoop.envs.scoop import make_scoop_env
 
 
@@ -54,41 +59,62 @@ def cpu_description() -> str:
     return platform.processor() or platform.machine()
 
 
+class _TimedPolicy:
+    """The controller, noting when each of its actions goes to the environment (the env step's start)."""
+
+    def __init__(self, policy: Policy) -> None:
+        self.policy = policy
+        self.name = policy.name
+        self.handed_over = 0.0
+
+    def reset(self) -> None:
+        self.policy.reset()
+
+    def act(self, observation: np.ndarray) -> np.ndarray:
+        action = self.policy.act(observation)
+        self.handed_over = time.perf_counter()
+        return action
+
+
 def measure_once(config: ScoopConfig, episodes: int, seed: int, env: Any = None) -> dict[str, float]:
-    """One timed pass of ``episodes`` scripted episodes."""
+    """One timed pass of ``episodes`` scripted episodes.
+
+    Physics steps are timed by a substep observer, from one physics step's end to the next within an
+    environment step (so the simulator runs its steps one by one, as it does with the torque mass
+    source's load cell attached); environment steps from the controller's action to the step's end.
+    """
     env = env or make_scoop_env(config)
     sim = env.unwrapped.sim
-    policy = heuristic_for(config)
-    physics_time, physics_steps = 0.0, 0
-    original_step = sim.step
+    policy = _TimedPolicy(heuristic_for(config))
+    clock: dict[str, Any] = {"physics_time": 0.0, "physics_steps": 0, "env_time": 0.0, "env_steps": 0, "last": None,
+                             "elapsed_s": 0.0}
 
-    def timed_step(n_steps: int) -> None:
-        nonlocal physics_time, physics_steps
-        start = time.perf_counter()
-        original_step(n_steps)
-        physics_time += time.perf_counter() - start
-        physics_steps += n_steps
+    def after_physics_step() -> None:
+        now = time.perf_counter()
+        if clock["last"] is not None:  # the first step of an env step follows the env's own work: not timed
+            clock["physics_time"] += now - clock["last"]
+            clock["physics_steps"] += 1
+        clock["last"] = now
 
-    sim.step = timed_step
-    env_time, env_steps, simulated = 0.0, 0, 0.0
+    def after_env_step(step: int, obs: np.ndarray, action: np.ndarray, reward: float, info: dict) -> None:
+        clock["env_time"] += time.perf_counter() - policy.handed_over
+        clock["env_steps"] += 1
+        clock["last"] = None
+        clock["elapsed_s"] = info["elapsed_s"]
+
+    simulated = 0.0
+    sim.add_substep_observer(after_physics_step)
     wall_start = time.perf_counter()
     try:
         for i in range(episodes):
-            obs, _ = env.reset(seed=seed + i)
-            policy.reset()
-            while True:
-                action = policy.act(obs)
-                start = time.perf_counter()
-                obs, _, terminated, truncated, info = env.step(action)
-                env_time += time.perf_counter() - start
-                env_steps += 1
-                if terminated or truncated:
-                    break
-            simulated += info["elapsed_s"]
+            rollout(policy, env, seed + i, observers=(after_env_step,))
+            simulated += clock["elapsed_s"]
     finally:
-        sim.step = original_step
+        sim.remove_substep_observer(after_physics_step)
     wall = time.perf_counter() - wall_start
-    return {"physics_steps_per_s": physics_steps / physics_time, "env_steps_per_s": env_steps / env_time,
+    timed = clock["physics_steps"] > 0  # none when an env step is a single physics step
+    return {"physics_steps_per_s": clock["physics_steps"] / clock["physics_time"] if timed else math.nan,
+            "env_steps_per_s": clock["env_steps"] / clock["env_time"],
             "realtime_factor": simulated / wall, "simulated_s": simulated, "wall_s": wall}
 
 

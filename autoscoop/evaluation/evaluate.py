@@ -1,6 +1,6 @@
 """Run a controller for N episodes and measure it the way earth-moving people do.
 
-Definitions (SPEC.md): fill factor = mass in the bucket at the end / rated load; cycle time =
+Definitions (docs/definitions.md): fill factor = mass in the bucket at the end / rated load; cycle time =
 seconds from the start to success (failed episodes are reported apart); success = the tip reached
 the terminal point in time; spillage = particles that were in the bucket and are not at the end.
 """
@@ -8,67 +8,25 @@ the terminal point in time; spillage = particles that were in the bucket and are
 from __future__ import annotations
 
 import math
-from dataclasses import asdict, dataclass
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any
 
 import numpy as np
 from tqdm import tqdm
 
-from autoscoop.core.version import __version__
-from autoscoop.core.policy import Policy
 from autoscoop.core.config import ScoopConfig
+from autoscoop.core.policy import Policy
+from autoscoop.core.version import __version__
+from autoscoop.envs.outcome import EpisodeOutcome
+from autoscoop.envs.rollout import rollout
 from autoscoop.envs.scoop import make_scoop_env
 from autoscoop.evaluation.recorder import EpisodeRecorder, record_name
 from autoscoop.evaluation.summary import outcome_statistics
 
 
-@dataclass(frozen=True)
-class EpisodeResult:
-    """The outcome of one episode."""
-
-    seed: int
-    fill_factor: float
-    mass_kg: float
-    particles: int
-    success: bool
-    cycle_time_s: float
-    """seconds to success; NaN when the episode failed."""
-    spilled: int
-    physics_error: bool
-    steps: int
-    episode_return: float
-
-
-StepHook = Callable[[int, np.ndarray, np.ndarray, float, dict], None]
-"""Called after each step with (step index, observation before, action, reward, info)."""
-
-
-def run_episode(env: Any, policy: Policy, seed: int, on_step: StepHook | None = None) -> EpisodeResult:
-    """Run one episode of ``policy`` in ``env`` (a Gymnasium env of autoscoop) from ``seed``."""
-    obs, info = env.reset(seed=seed)
-    policy.reset()
-    total, steps = 0.0, 0
-    while True:
-        action = policy.act(obs)
-        next_obs, reward, terminated, truncated, info = env.step(action)
-        if on_step is not None:
-            on_step(steps, obs, np.asarray(action), float(reward), info)
-        obs = next_obs
-        total += float(reward)
-        steps += 1
-        if terminated or truncated:
-            break
-    return EpisodeResult(
-        seed=seed, fill_factor=float(info["fill_factor"]), mass_kg=float(info["mass_in_bucket_kg"]),
-        particles=int(info["particles_in_bucket"]), success=bool(info["success"]),
-        cycle_time_s=float(info.get("cycle_time_s", math.nan)), spilled=int(info["spilled"]),
-        physics_error=bool(info["physics_error"]), steps=steps, episode_return=total)
-
-
 def evaluate(policy: Policy, config: ScoopConfig, episodes: int, seed: int = 0,
              progress: bool = True, records_dir: str | Path | None = None,
-             records_meta: dict[str, Any] | None = None) -> list[EpisodeResult]:
+             records_meta: dict[str, Any] | None = None) -> list[EpisodeOutcome]:
     """Run ``episodes`` episodes with seeds ``seed, seed + 1, ...``; show a progress bar.
 
     With ``records_dir``, each episode's record (``autoscoop.envs.records``) is saved there as
@@ -77,11 +35,11 @@ def evaluate(policy: Policy, config: ScoopConfig, episodes: int, seed: int = 0,
     env = make_scoop_env(config)
     if records_dir is not None:
         env = EpisodeRecorder(env, {"policy": policy.name, "source": "eval", **(records_meta or {})})
-    results: list[EpisodeResult] = []
+    results: list[EpisodeOutcome] = []
     bar = tqdm(range(episodes), desc=f"eval {policy.name}", unit="ep", disable=not progress)
     try:
         for i in bar:
-            results.append(run_episode(env, policy, seed + i))
+            results.append(rollout(policy, env, seed + i))
             if records_dir is not None:
                 env.save(Path(records_dir) / record_name(seed + i))
             fills = [r.fill_factor for r in results]
@@ -91,15 +49,17 @@ def evaluate(policy: Policy, config: ScoopConfig, episodes: int, seed: int = 0,
     return results
 
 
-def summarize(results: list[EpisodeResult], config: ScoopConfig, policy_name: str) -> dict[str, Any]:
-    """Summary statistics (mean and standard deviation over episodes) with the config used."""
+def summarize(results: list[EpisodeOutcome], config: ScoopConfig, policy_name: str) -> dict[str, Any]:
+    """Summary statistics (mean and standard deviation over episodes) with the config used; each
+    episode's outcome under ``episodes_detail`` (``cycle_time_s`` ``None`` where it did not succeed)."""
+    outcomes = [r.as_dict() for r in results]
     return {
         "policy": policy_name,
-        **outcome_statistics(asdict(r) for r in results),
+        **outcome_statistics(outcomes),
         "pile": {"angle_deg": config.pile.angle_deg, "n_particles": config.pile.n_particles},
         "autoscoop_version": __version__,
         "config": config.to_dict(),
-        "episodes_detail": [asdict(r) for r in results],
+        "episodes_detail": outcomes,
     }
 
 

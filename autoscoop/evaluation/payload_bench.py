@@ -5,7 +5,7 @@ Static holds: the loader stands still with its bucket raised (the carry pose of
 time, and each time the bucket carries a new count (0 ... 25) the scene is left to settle, the
 torques are averaged over :data:`AVERAGE_S`, and both estimators (paper eq. 4 and eq. 8) are compared
 with the true mass. The true mass is that of every particle the bucket carries: inside the paper's
-quadrilateral (SPEC.md's count) or heaped above its mouth, since the torques feel both; the error
+quadrilateral (docs/definitions.md's count) or heaped above its mouth, since the torques feel both; the error
 against the quadrilateral's count alone is reported beside it.
 
 Particles resting on a servo-held bucket need not come to rest in MuJoCo: with low bucket friction
@@ -22,7 +22,7 @@ cell does) and are compared with the true mass.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -30,13 +30,13 @@ import mujoco
 import numpy as np
 
 from autoscoop.core import kinematics
-from autoscoop.core.version import __version__
 from autoscoop.core import payload as payload_mod
 from autoscoop.core.config import ScoopConfig
+from autoscoop.core.state import STATE_SIZE
+from autoscoop.core.version import __version__
 from autoscoop.envs.records import EpisodeRecord
 from autoscoop.sim.load_cell import ReadingWindow, instant_reading
 from autoscoop.sim.scene import ScoopSim
-from autoscoop.core.state import STATE_SIZE
 
 HOLD_POSES_RAD: tuple[tuple[float, float], ...] = ((-0.10, -0.50), (0.0, -0.40), (-0.05, -0.30))
 """(lift, tilt) of the static holds: the carry pose (arm up, bucket fully curled) and two less curled."""
@@ -65,7 +65,7 @@ class HoldSample:
     mass_kg: float
     """mass of the particles the bucket carries (inside or heaped), kg."""
     mass_in_bucket_kg: float
-    """mass of the particles inside the paper's quadrilateral (SPEC.md), kg."""
+    """mass of the particles inside the paper's quadrilateral (docs/definitions.md), kg."""
     lift_rad: float
     tilt_rad: float
     lift_torque_nm: float
@@ -93,14 +93,12 @@ class _Hold:
     """A loader holding its bucket still at one pose, with particles parked out of the way."""
 
     def __init__(self, config: ScoopConfig, lift_rad: float, tilt_rad: float, n_particles: int) -> None:
-        config = replace(config, pile=replace(config.pile, n_particles=n_particles, variants=1))
+        config = config.replace(pile=config.pile.replace(n_particles=n_particles, variants=1))
         self.sim = sim = ScoopSim(config)
         m, d = sim.model, sim.data
         m.opt.enableflags &= ~int(mujoco.mjtEnableBit.mjENBL_SLEEP)  # teleported particles must wake
         mujoco.mj_resetData(m, d)
-        d.qpos[sim._root_qpos:sim._root_qpos + 7] = [-1.5, 0.0, kinematics.CHASSIS_CENTRE_HEIGHT_M, 1, 0, 0, 0]
-        d.qpos[sim._lift_qpos], d.qpos[sim._tilt_qpos] = lift_rad, tilt_rad
-        d.act[sim._lift_act_state], d.act[sim._tilt_act_state] = lift_rad, tilt_rad
+        sim.set_pose(-1.5, lift_rad, tilt_rad)
         for i in range(n_particles):
             sim.set_particle(i, np.array([2.0 + 0.1 * i, 3.0, config.pile.radius_m]))
         mujoco.mj_forward(m, d)
@@ -126,11 +124,9 @@ class _Hold:
 
     def drop(self, index: int, rng: np.random.Generator) -> None:
         """Teleport particle ``index`` above the middle of the bucket's mouth, at a random spot across."""
-        sim, d = self.sim, self.sim.data
+        sim = self.sim
         mouth = kinematics.BUCKET_INSIDE_POLYGON_M[1:3].mean(axis=0)
-        origin = d.xpos[sim._bucket]
-        rotation = d.xmat[sim._bucket].reshape(3, 3)
-        above = origin + rotation @ np.array([mouth[0], 0.0, mouth[1]])
+        above = sim.bucket_to_world(np.array([mouth[0], 0.0, mouth[1]]))
         y = rng.uniform(-0.8, 0.8) * kinematics.BUCKET_INNER_HALF_WIDTH_M
         sim.set_particle(index, above + np.array([rng.uniform(-0.02, 0.02), y, DROP_HEIGHT_M]))
 
@@ -267,10 +263,11 @@ def moving_scoops(config: ScoopConfig | None = None, episodes: int = 5, seed: in
     the step's physics steps (what the environment's load cell reports). Errors are reported over
     all steps, over the steps with the bucket clear of the pile (not penetrating and the tip more
     than a particle radius from it), and at the episodes' last steps (raised at the terminal point,
-    or at the time limit). The true mass is the particles inside the bucket (SPEC.md); at the last
+    or at the time limit). The true mass is the particles inside the bucket (docs/definitions.md); at the last
     step the error against every particle the bucket carries (inside or heaped) is given too.
     """
     from autoscoop.agents.loading import heuristic_for  # noqa: PLC0415 - the env is only needed here
+    from autoscoop.envs.rollout import rollout  # noqa: PLC0415
     from autoscoop.envs.scoop import make_scoop_env  # noqa: PLC0415
 
     config = config or ScoopConfig()
@@ -281,28 +278,26 @@ def moving_scoops(config: ScoopConfig | None = None, episodes: int = 5, seed: in
     rows: dict[str, list] = {k: [] for k in ("truth", "carried", "eq8_instant", "eq4_instant", "eq8_mean",
                                              "eq4_mean", "clear", "last")}
     window = ReadingWindow(sim)
+
+    def read(step: int, obs: np.ndarray, action: np.ndarray, reward: float, next_obs: np.ndarray,
+             terminated: bool, truncated: bool, info: dict[str, Any]) -> None:
+        if info["physics_error"]:
+            window.take()  # the failed step's readings are not the next episode's
+            return
+        rows["truth"].append(info["mass_in_bucket_kg"])
+        inside, heaped = carried_particles(sim)
+        rows["carried"].append(float(sim.particle_masses[inside | heaped].sum()))
+        for kind, r in (("instant", instant_reading(sim)), ("mean", window.take())):
+            rows[f"eq8_{kind}"].append(float(payload_mod.mass_eq8(
+                r.lift_rad, r.tilt_rad, r.lift_torque_nm, r.tilt_torque_nm, calibration, r.chassis_pitch_rad)))
+            rows[f"eq4_{kind}"].append(float(payload_mod.mass_eq4(
+                r.lift_rad, r.tilt_rad, r.tilt_torque_nm, calibration, r.chassis_pitch_rad)))
+        rows["clear"].append(not info["penetrating"] and info["tip_to_pile_m"] > config.pile.radius_m)
+        rows["last"].append(terminated or truncated)
+
     try:
         for episode in range(episodes):
-            obs, _ = env.reset(seed=seed + episode)
-            policy.reset()
-            window.take()
-            while True:
-                obs, _, terminated, truncated, info = env.step(policy.act(obs))
-                done = terminated or truncated
-                if info["physics_error"]:
-                    break
-                rows["truth"].append(info["mass_in_bucket_kg"])
-                inside, heaped = carried_particles(sim)
-                rows["carried"].append(float(sim.particle_masses[inside | heaped].sum()))
-                for kind, r in (("instant", instant_reading(sim)), ("mean", window.take())):
-                    rows[f"eq8_{kind}"].append(float(payload_mod.mass_eq8(
-                        r.lift_rad, r.tilt_rad, r.lift_torque_nm, r.tilt_torque_nm, calibration, r.chassis_pitch_rad)))
-                    rows[f"eq4_{kind}"].append(float(payload_mod.mass_eq4(
-                        r.lift_rad, r.tilt_rad, r.tilt_torque_nm, calibration, r.chassis_pitch_rad)))
-                rows["clear"].append(not info["penetrating"] and info["tip_to_pile_m"] > config.pile.radius_m)
-                rows["last"].append(done)
-                if done:
-                    break
+            rollout(policy, env, seed + episode, transition_observers=(read,))
     finally:
         window.detach()
         env.close()

@@ -14,8 +14,8 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
-from autoscoop.core.version import __version__
-from autoscoop.envs.records import EpisodeRecord
+from autoscoop.envs.outcome import EpisodeOutcome
+from autoscoop.envs.records import EpisodeRecord, episode_meta
 
 
 def record_name(seed: int) -> str:
@@ -37,30 +37,26 @@ class EpisodeRecorder(gym.Wrapper):
         self.record = EpisodeRecord()
         self._return = 0.0
         self._last_info: dict[str, Any] = {}
+        self._seed = -1
 
     def reset(self, *, seed: int | None = None, options: dict | None = None) -> tuple[np.ndarray, dict]:
         obs, info = self.env.reset(seed=seed, options=options)
         scoop = self.env.unwrapped
         sim, config = scoop.sim, scoop.config
         particles = sim.particle_positions
-        self.record = EpisodeRecord(meta={
-            **self.base_meta,
-            "seed": seed,
-            "autoscoop_version": __version__,
-            "pile": {"angle_deg": sim.pile_angle_deg, "n_particles": config.pile.n_particles,  # this episode's
-                     "radius_m": config.pile.radius_m},
-            "terminal_point_m": [config.reward.terminal_dx_m, config.reward.terminal_z_m],
-            "control_period_s": config.env.control_period_s,
-            "time_limit_s": config.env.max_episode_s,
-            "config": config.to_dict(),
-            "start": {
-                "state": np.asarray(obs, dtype=float).round(6).tolist(),
-                "lift_rad": sim.lift_rad, "tilt_rad": sim.tilt_rad,
-                "tip_world_m": sim.tip_world.round(6).tolist(),
-                "particles_xz_m": particles[:, [0, 2]].round(4).tolist(),
-            },
-        })
+        meta = episode_meta(config, control_period_s=config.env.control_period_s,
+                            time_limit_s=config.env.max_episode_s,
+                            pile_angle_deg=sim.pile_angle_deg,  # this episode's (a mix of piles)
+                            **{**self.base_meta, "seed": seed})
+        meta["start"] = {
+            "state": np.asarray(obs, dtype=float).round(6).tolist(),
+            "lift_rad": sim.lift_rad, "tilt_rad": sim.tilt_rad,
+            "tip_world_m": sim.tip_world.round(6).tolist(),
+            "particles_xz_m": particles[:, [0, 2]].round(4).tolist(),
+        }
+        self.record = EpisodeRecord(meta=meta)
         self._return, self._last_info = 0.0, dict(info)
+        self._seed = -1 if seed is None else int(seed)
         return obs, info
 
     def step(self, action: np.ndarray) -> tuple[np.ndarray, float, bool, bool, dict]:
@@ -88,24 +84,14 @@ class EpisodeRecorder(gym.Wrapper):
         self._last_info = dict(info)
         return obs, reward, terminated, truncated, info
 
-    def outcome(self) -> dict[str, Any]:
-        """The current episode's outcome so far (the same numbers evaluation reports)."""
-        info = self._last_info
-        cycle = info.get("cycle_time_s")
-        return {
-            "fill_factor": float(info.get("fill_factor", 0.0)),
-            "mass_kg": float(info.get("mass_in_bucket_kg", 0.0)),
-            "particles": int(info.get("particles_in_bucket", 0)),
-            "success": bool(info.get("success", False)),
-            "cycle_time_s": None if cycle is None else float(cycle),
-            "spilled": int(info.get("spilled", 0)),
-            "physics_error": bool(info.get("physics_error", False)),
-            "steps": len(self.record),
-            "episode_return": self._return,
-        }
+    def outcome(self) -> EpisodeOutcome:
+        """The current episode's outcome so far (the same numbers evaluation reports); seed ``-1`` when
+        the episode was reset without one."""
+        return EpisodeOutcome.from_info(self._last_info, seed=self._seed, steps=len(self.record),
+                                        episode_return=self._return)
 
     def save(self, path: str | Path, **extra_meta: Any) -> Path:
         """Write the current episode's record, its outcome added to the metadata."""
         self.record.meta.update(extra_meta)
-        self.record.meta["outcome"] = self.outcome()
+        self.record.meta["outcome"] = self.outcome().as_dict()
         return self.record.save(path)

@@ -1,9 +1,9 @@
 """Off-screen video frames of an episode, more of them than there are control steps.
 
-A control step (0.25 s) is several physics steps. :class:`FrameCapture` runs those physics steps in
-chunks and renders the scene after each chunk, so a video shows real simulation states at
-``fps`` frames per simulated second. MuJoCo's ``mj_step`` called ``n`` times is exactly one call
-with ``nstep = n``, so the episode is the same as without capture (a test checks it).
+A control step (0.25 s) is several physics steps. :class:`FrameCapture` watches those physics steps
+(a substep observer of the simulator) and renders the scene every few of them, so a video shows real
+simulation states at ``fps`` frames per simulated second. MuJoCo's ``mj_step`` called ``n`` times is
+exactly one call with ``nstep = n``, so the episode is the same as without capture (a test checks it).
 """
 
 from __future__ import annotations
@@ -13,8 +13,8 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
-from autoscoop.sim.glbackend import INSTALL_HINT
 from autoscoop.core.phases import phase_now
+from autoscoop.sim.glbackend import INSTALL_HINT
 
 FRAME_SIZE = (768, 432)
 """Width and height of rendered frames, pixels (16:9, both multiples of 16 for video encoders)."""
@@ -62,8 +62,7 @@ class FrameCapture(gym.Wrapper):
         self._since_frame = 0
         self._penetrated = False
         self._penetrating = False
-        self._step_physics = self.sim.step
-        self.sim.step = self._chunked_step  # instance attribute: this sim only, undone by close()
+        self.sim.add_substep_observer(self._after_physics_step)  # detached by close()
 
     def reset(self, *, seed: int | None = None, options: dict | None = None) -> tuple[np.ndarray, dict]:
         obs, info = self.env.reset(seed=seed, options=options)
@@ -82,19 +81,14 @@ class FrameCapture(gym.Wrapper):
         return obs, reward, terminated, truncated, info
 
     def close(self) -> None:
-        if self.sim.__dict__.get("step") is not None:
-            del self.sim.step
+        self.sim.remove_substep_observer(self._after_physics_step)
         self._renderer.close()
         super().close()
 
-    def _chunked_step(self, n_steps: int) -> None:
-        while n_steps > 0:
-            chunk = min(n_steps, self.interval - self._since_frame)
-            self._step_physics(chunk)
-            n_steps -= chunk
-            self._since_frame += chunk
-            if self._since_frame == self.interval:
-                self._capture()
+    def _after_physics_step(self) -> None:
+        self._since_frame += 1
+        if self._since_frame == self.interval:
+            self._capture()
 
     def _capture(self) -> None:
         self._since_frame = 0
@@ -139,17 +133,17 @@ def render_episode(policy: Any, config: Any, seed: int, fps: float = 16.0,
 
     Returns:
         (the capture, holding ``frames``, ``times_s`` and ``fps``; the episode's record,
-        an ``EpisodeRecord``; its ``EpisodeResult``). The capture is closed.
+        an ``EpisodeRecord``; its ``EpisodeOutcome``). The capture is closed.
     """
-    from autoscoop.envs.scoop import make_scoop_env  # noqa: PLC0415 - keeps this module light to import
-    from autoscoop.evaluation.evaluate import run_episode  # noqa: PLC0415
+    from autoscoop.envs.rollout import rollout  # noqa: PLC0415 - keeps this module light to import
+    from autoscoop.envs.scoop import make_scoop_env  # noqa: PLC0415
     from autoscoop.evaluation.recorder import EpisodeRecorder  # noqa: PLC0415
 
     capture = FrameCapture(make_scoop_env(config), fps=fps, size=size)
     recorder = EpisodeRecorder(capture, {"policy": policy.name, "source": "video"})
     try:
-        result = run_episode(recorder, policy, seed)
-        recorder.record.meta["outcome"] = recorder.outcome()
+        result = rollout(policy, recorder, seed)
+        recorder.record.meta["outcome"] = result.as_dict()
     finally:
         recorder.close()
     return capture, recorder.record, result

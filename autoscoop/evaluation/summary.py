@@ -1,15 +1,16 @@
 """Statistics over episodes, the way every report of autoscoop gives them: mean and standard deviation.
 
-One place for ``autoscoop eval``'s summary (from :class:`autoscoop.evaluation.evaluate.EpisodeResult`) and for
-the reports built from episode records (their ``outcome`` metadata): both hand in mappings with the
-keys ``mass_kg``, ``particles``, ``fill_factor``, ``cycle_time_s`` (NaN or ``None`` when the
+One place for ``autoscoop eval``'s summary and for the reports built from episode records: both hand
+in :meth:`autoscoop.envs.outcome.EpisodeOutcome.as_dict` mappings (a record's ``outcome`` metadata),
+with the keys ``mass_kg``, ``particles``, ``fill_factor``, ``cycle_time_s`` (``None`` when the
 episode did not succeed), ``success``, ``spilled`` and ``physics_error``.
 """
 
 from __future__ import annotations
 
 import math
-from typing import Any, Iterable, Mapping
+from collections.abc import Iterable, Mapping
+from typing import Any
 
 import numpy as np
 
@@ -37,8 +38,7 @@ def outcome_statistics(outcomes: Iterable[Mapping[str, Any]]) -> dict[str, float
         ("fill_factor", [float(o["fill_factor"]) for o in outcomes]),
         ("mass_kg", [float(o["mass_kg"]) for o in outcomes]),
         ("particles", [float(o["particles"]) for o in outcomes]),
-        ("cycle_time", [float(o["cycle_time_s"]) for o in outcomes
-                        if o["success"] and o["cycle_time_s"] is not None]),
+        ("cycle_time", [float(o["cycle_time_s"]) for o in outcomes if o["cycle_time_s"] is not None]),
         ("spillage", [float(o["spilled"]) for o in outcomes]),
     ):
         out[f"{key}_mean"], out[f"{key}_std"] = mean_std(values)

@@ -13,16 +13,19 @@ action that moves the environment's targets to what is asked, so the environment
 
 from __future__ import annotations
 
+import contextlib
 import threading
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
 from datetime import datetime
 from pathlib import Path
-from typing import Any, Callable, Protocol
+from typing import Any, Protocol
 
 import numpy as np
 
 from autoscoop.core.state import CommandLimits, advance_targets
+from autoscoop.envs.rollout import rollout
 
 # GLFW key codes, which MuJoCo's viewer passes to its key callback.
 KEY_SPACE, KEY_ENTER = 32, 257
@@ -168,49 +171,28 @@ def run_session(env: Any, keys: TeleopKeys, viewer: Viewer, options: SessionOpti
     scoop = env.unwrapped
     sim = scoop.sim
     interval = max(1, int(round(1.0 / (options.display_hz * float(sim.model.opt.timestep)))))
-    step_physics = sim.step
-    pace = {"wall0": clock(), "sim0": 0.0}
-
-    def paced_step(n_steps: int) -> None:
-        # the physics runs in chunks; the window shows each chunk in (scaled) real time
-        while n_steps > 0 and viewer.is_running():
-            chunk = min(n_steps, interval)
-            with viewer.lock():
-                step_physics(chunk)
-            n_steps -= chunk
-            viewer.sync()
-            behind = (sim.elapsed_s - pace["sim0"]) / options.speed - (clock() - pace["wall0"])
-            if behind > 0:
-                sleep(behind)
-        if n_steps > 0:  # window closed mid-step: finish the step so the episode stays consistent
-            step_physics(n_steps)
-
+    pacer = _Pacer(sim, viewer, interval, scoop.config.substeps, options.speed, sleep, clock)
     saved: list[Path] = []
     seed = options.seed
-    sim.step = paced_step  # instance attribute: this sim only, removed below
+    sim.add_substep_observer(pacer.after_physics_step)  # this sim only, detached below
+    manual = _KeyboardPolicy(keys, viewer, pacer, scoop.config.robot.start_lift_rad,
+                             scoop.config.robot.start_tilt_rad)
     try:
         while viewer.is_running() and (options.episodes <= 0 or len(saved) < options.episodes):
-            obs, info = env.reset(seed=seed)
-            keys.reset(np.array([0.0, scoop.config.robot.start_lift_rad, scoop.config.robot.start_tilt_rad]))
-            viewer.sync()
-            pace["wall0"], pace["sim0"] = clock(), sim.elapsed_s
-            finished = False
-            while viewer.is_running():
-                obs, reward, terminated, truncated, info = env.step(keys.next_action())
-                _show_status(viewer, keys, info, seed)
-                if keys.take_enter() or terminated or truncated:
-                    finished = True
-                    break
-            if not finished:
+            end = _EpisodeEnd(keys, viewer)
+            rollout(manual, env, seed, observers=(manual.after_step, _status_shower(viewer, keys, seed)),
+                    transition_observers=(end.observe,), stop=end.asked)
+            if not end.finished:  # the window closed mid-episode: nothing to save
                 break
+            info, truncated = end.info, end.truncated
             stamp = datetime.now().strftime("%Y%m%d-%H%M%S")
             path = env.save(Path(options.out_dir) / f"manual_{stamp}_seed{seed:05d}.npz", source="teleop",
                             policy="manual", ended="success" if info.get("success") else
                             ("time limit" if truncated else "stopped by hand"))
             saved.append(path)
             o = env.outcome()
-            result = f"success in {o['cycle_time_s']:.2f} s" if o["success"] else "no success"
-            echo(f"episode {len(saved)}: {o['mass_kg']:.2f} kg ({o['particles']} particles), {result}; saved {path}")
+            result = f"success in {o.cycle_time_s:.2f} s" if o.success else "no success"
+            echo(f"episode {len(saved)}: {o.mass_kg:.2f} kg ({o.particles} particles), {result}; saved {path}")
             seed += 1
             if options.episodes <= 0 or len(saved) < options.episodes:
                 echo("press Enter in the window for the next episode, or close it to quit")
@@ -218,8 +200,111 @@ def run_session(env: Any, keys: TeleopKeys, viewer: Viewer, options: SessionOpti
                     viewer.sync()
                     sleep(0.05)
     finally:
-        del sim.step
+        pacer.end_step()
+        sim.remove_substep_observer(pacer.after_physics_step)
     return saved
+
+
+class _KeyboardPolicy:
+    """The person at the keyboard as a :class:`autoscoop.core.policy.Policy`: each action is what the
+    keys held now say; each step's physics is paced for the viewer."""
+
+    name = "manual"
+
+    def __init__(self, keys: TeleopKeys, viewer: Viewer, pacer: _Pacer, start_lift_rad: float,
+                 start_tilt_rad: float) -> None:
+        self.keys, self.viewer, self.pacer = keys, viewer, pacer
+        self.start_targets = np.array([0.0, start_lift_rad, start_tilt_rad])
+
+    def reset(self) -> None:
+        self.keys.reset(self.start_targets.copy())
+        self.viewer.sync()
+        self.pacer.restart()
+
+    def act(self, observation: np.ndarray) -> np.ndarray:
+        action = self.keys.next_action()
+        self.pacer.begin_step()
+        return action
+
+    def after_step(self, step: int, obs: np.ndarray, action: np.ndarray, reward: float, info: dict) -> None:
+        self.pacer.end_step()
+
+
+class _EpisodeEnd:
+    """Why a manual episode ended: the environment (success, time limit), Enter, or a closed window."""
+
+    def __init__(self, keys: TeleopKeys, viewer: Viewer) -> None:
+        self.keys, self.viewer = keys, viewer
+        self.info: dict = {}
+        self.truncated = self.finished = False
+
+    def observe(self, step: int, obs: np.ndarray, action: np.ndarray, reward: float, next_obs: np.ndarray,
+                terminated: bool, truncated: bool, info: dict) -> None:
+        self.info, self.truncated = info, truncated
+        self.finished = terminated or truncated
+
+    def asked(self) -> bool:
+        """Stop now? Enter ends the episode (kept); a closed window ends it unsaved."""
+        if self.keys.take_enter():
+            self.finished = True
+        return self.finished or not self.viewer.is_running()
+
+
+def _status_shower(viewer: Viewer, keys: TeleopKeys, seed: int) -> Callable[..., None]:
+    def show(step: int, obs: np.ndarray, action: np.ndarray, reward: float, info: dict) -> None:
+        _show_status(viewer, keys, info, seed)
+    return show
+
+
+class _Pacer:
+    """Shows the physics in (scaled) real time: a substep observer of the sim.
+
+    Each environment step's physics steps run in chunks of ``interval`` (the last one shorter) under
+    the viewer's lock; after each chunk the window is refreshed and the pace kept. Once the window is
+    closed, the step's remaining physics runs unpaced, so the episode stays consistent.
+    """
+
+    def __init__(self, sim: Any, viewer: Viewer, interval: int, substeps: int, speed: float,
+                 sleep: Callable[[float], None], clock: Callable[[], float]) -> None:
+        self.sim, self.viewer, self.interval, self.substeps, self.speed = sim, viewer, interval, substeps, speed
+        self.sleep, self.clock = sleep, clock
+        self.wall0, self.sim0 = clock(), 0.0
+        self.left = self.in_chunk = 0
+        self.paced = False
+        self.lock = contextlib.ExitStack()
+
+    def restart(self) -> None:
+        """Keep the pace from now on (an episode starts)."""
+        self.wall0, self.sim0 = self.clock(), self.sim.elapsed_s
+
+    def begin_step(self) -> None:
+        """An environment step of ``substeps`` physics steps starts."""
+        self.left, self.in_chunk = self.substeps, 0
+        self._start_chunk()
+
+    def end_step(self) -> None:
+        """The environment step is over (or failed)."""
+        self.lock.close()
+        self.paced = False
+
+    def after_physics_step(self) -> None:
+        self.left -= 1
+        if not self.paced:
+            return
+        self.in_chunk += 1
+        if self.in_chunk == self.interval or self.left <= 0:
+            self.lock.close()
+            self.viewer.sync()
+            behind = (self.sim.elapsed_s - self.sim0) / self.speed - (self.clock() - self.wall0)
+            if behind > 0:
+                self.sleep(behind)
+            self.in_chunk = 0
+            self._start_chunk()
+
+    def _start_chunk(self) -> None:
+        self.paced = self.left > 0 and self.viewer.is_running()
+        if self.paced:
+            self.lock.enter_context(self.viewer.lock())
 
 
 def _show_status(viewer: Viewer, keys: TeleopKeys, info: dict, seed: int) -> None:

@@ -1,26 +1,29 @@
 """Episode records as tables: load them, group them, summarise them (mean and std over episodes).
 
-Definitions as in ``autoscoop.evaluation.evaluate`` (SPEC.md): the cycle time is averaged over successful
-episodes only; standard deviations are over episodes (``numpy.std``, ddof = 0), as ``autoscoop eval``
-prints them, so both report the same numbers for the same episodes.
+Definitions as in ``autoscoop.evaluation.evaluate`` and docs/definitions.md: the cycle time is averaged
+over successful episodes only; standard deviations are over episodes (``numpy.std``, ddof = 0), as
+``autoscoop eval`` prints them, so both report the same numbers for the same episodes.
 """
 
 from __future__ import annotations
 
 import math
 from collections import defaultdict
+from collections.abc import Iterable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Iterable
 
 import numpy as np
 
 from autoscoop.core.phases import PhaseSpans, phase_spans
+from autoscoop.core.state import STATE_NAMES, STATE_SIZE
 from autoscoop.envs.records import EpisodeRecord, load_record
 from autoscoop.evaluation.summary import outcome_statistics
 
 MANUAL = "manual"
 """The controller label of records made by hand (``autoscoop teleop``)."""
+_SPEED = STATE_NAMES.index("v")
+"""Index of the forward drive speed in the state."""
 
 
 @dataclass(frozen=True)
@@ -59,11 +62,11 @@ class Episode:
         a = self.record.arrays()
         start = self.meta.get("start")
         t, tip = a["time_s"], a["tip_world_m"].reshape(-1, 3)
-        v, lift, tilt = a["state"].reshape(-1, 12)[:, 6], a["lift_rad"], a["tilt_rad"]
+        v, lift, tilt = a["state"].reshape(-1, STATE_SIZE)[:, _SPEED], a["lift_rad"], a["tilt_rad"]
         if start:
             t = np.concatenate([[0.0], t])
             tip = np.vstack([start["tip_world_m"], tip])
-            v = np.concatenate([[start["state"][6]], v])
+            v = np.concatenate([[start["state"][_SPEED]], v])
             lift = np.concatenate([[start["lift_rad"]], lift])
             tilt = np.concatenate([[start["tilt_rad"]], tilt])
         return {"t": t, "tip_x": tip[:, 0], "tip_z": tip[:, 2], "v": v, "lift": lift, "tilt": tilt,

@@ -12,8 +12,8 @@ Positions are in the world (pile) frame: x forward from the pile's toe, z up fro
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from pathlib import Path
-from typing import Sequence
 
 import numpy as np
 from matplotlib.axes import Axes
@@ -21,6 +21,7 @@ from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
 from matplotlib.patches import Circle
 
+from autoscoop.core.config import PileConfig, RewardConfig
 from autoscoop.core.phases import PHASES
 from autoscoop.report.data import Episode
 
@@ -46,7 +47,7 @@ def _draw_pile(ax: Axes, episode: Episode) -> None:
     points = episode.pile_xz()
     if points is None:
         return
-    radius = float(episode.meta.get("pile", {}).get("radius_m", 0.034))
+    radius = float(episode.meta.get("pile", {}).get("radius_m", PileConfig().radius_m))
     for x, z in points:
         ax.add_patch(Circle((x, z), radius, facecolor=PILE_COLOUR, edgecolor="#7A6548", lw=0.4, alpha=0.35))
 
@@ -55,7 +56,7 @@ def _draw_terminal(ax: Axes, episode: Episode) -> None:
     point = episode.meta.get("terminal_point_m")
     if point is None:
         return
-    epsilon = float(episode.meta.get("config", {}).get("reward", {}).get("epsilon_m", 0.05))
+    epsilon = float(episode.meta.get("config", {}).get("reward", {}).get("epsilon_m", RewardConfig().epsilon_m))
     ax.add_patch(Circle(tuple(point), epsilon, fill=False, ls="--", lw=0.8, edgecolor="0.3"))
     ax.plot(*point, marker="*", ms=10, color="0.2", ls="none")
 

@@ -8,10 +8,11 @@ from __future__ import annotations
 
 import math
 import re
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Sequence
 
+from autoscoop.core.config import EnvConfig, PileConfig
 from autoscoop.report.data import MANUAL, Episode, group_episodes, summarize_episodes
 from autoscoop.report.figures import plot_bucket_torque, plot_by_angle, plot_cycle
 
@@ -21,7 +22,10 @@ PAPER_ROWS = (
     ("paper: DRL controller", "robot, 3 angles", "5.5 ± 1.0", "", "", "5.1 – 7.1"),
     ("paper: manual control", "robot, 32°", "6.1 ± 0.7", "", "", "10"),
 )
-"""Shamshiri et al. 2021, Table 2 and Sec. VI (means ± std as printed there)."""
+"""Azulay and Shapiro, IEEE Access 9, 2021 (DOI 10.1109/ACCESS.2021.3056625), Table 2 and Sec. VI (means ± std
+as printed there)."""
+DEFAULT_TIME_LIMIT_S = EnvConfig().max_episode_s
+"""The episode time limit unless the records say otherwise (``env.max_episode_s``); other limits are noted."""
 
 
 @dataclass
@@ -49,7 +53,8 @@ def results_table(groups: dict[tuple[str, float], list[Episode]], paper: bool = 
              "|---|---|--:|--:|--:|--:|--:|--:|--:|"]
     for (name, angle), episodes in sorted(groups.items(), key=lambda item: (item[0][1], item[0][0])):
         s = summarize_episodes(episodes)
-        limit = "" if math.isnan(s["time_limit_s"]) or s["time_limit_s"] == 8.0 else f" ({s['time_limit_s']:g} s limit)"
+        default_limit = math.isnan(s["time_limit_s"]) or s["time_limit_s"] == DEFAULT_TIME_LIMIT_S
+        limit = "" if default_limit else f" ({s['time_limit_s']:g} s limit)"
         lines.append(
             f"| {name} | {angle:g}° | {s['episodes']} | {pm(s['mass_kg_mean'], s['mass_kg_std'])} | "
             f"{pm(s['particles_mean'], s['particles_std'], 1)} | {pm(s['fill_factor_mean'], s['fill_factor_std'])} | "
@@ -63,7 +68,8 @@ def results_table(groups: dict[tuple[str, float], list[Episode]], paper: bool = 
 
 
 def write_report(episodes: Sequence[Episode], out_dir: str | Path, title: str = "autoscoop report",
-                 intro: str = "", command: str | None = None, cycle_angle_deg: float = 32.0) -> ReportFiles:
+                 intro: str = "", command: str | None = None,
+                 cycle_angle_deg: float = PileConfig().angle_deg) -> ReportFiles:
     """Draw the figures and write ``report.md`` into ``out_dir``.
 
     Args:
@@ -117,7 +123,8 @@ def write_report(episodes: Sequence[Episode], out_dir: str | Path, title: str = 
         f"- piles: {', '.join(f'{a:g}°' for a in angles)}, "
         f"{episodes[0].meta.get('pile', {}).get('n_particles', '?')} particles; autoscoop {', '.join(versions)}",
         "- mean ± standard deviation over episodes; cycle time over successful episodes only; "
-        "success = the tip reached the terminal point within the time limit (8 s unless noted); "
+        "success = the tip reached the terminal point within the time limit "
+        f"({DEFAULT_TIME_LIMIT_S:g} s unless noted); "
         "spillage = particles that were in the bucket at some moment and are not at the end",
     ]
     if command:
@@ -128,7 +135,7 @@ def write_report(episodes: Sequence[Episode], out_dir: str | Path, title: str = 
         text.append(intro.strip() + "\n")
     text.append("## Results (paper Table 2)\n")
     text.append(results_table(groups) + "\n")
-    text.append("Rows in italics are the paper's (Shamshiri et al., IEEE Access 2021); its simulation used "
+    text.append("Rows in italics are the paper's (Azulay and Shapiro, IEEE Access 2021); its simulation used "
                 "one pile, its robot three (one of them 32°).\n")
     text.append("\n".join(provenance) + "\n")
     text.extend(sections)

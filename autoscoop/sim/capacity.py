@@ -8,8 +8,6 @@ The bucket is full when several drops in a row add nothing.
 
 from __future__ import annotations
 
-from dataclasses import replace
-
 import mujoco
 import numpy as np
 
@@ -39,7 +37,7 @@ def fill_until_overflow(config: ScoopConfig | None = None, max_particles: int = 
         Counts of particles inside the bucket after each drop; see :func:`capacity`.
     """
     config = config or ScoopConfig()
-    config = replace(config, pile=replace(config.pile, n_particles=max_particles, variants=1))
+    config = config.replace(pile=config.pile.replace(n_particles=max_particles, variants=1))
     sim = ScoopSim(config)
     m, d = sim.model, sim.data
     m.opt.enableflags &= ~int(mujoco.mjtEnableBit.mjENBL_SLEEP)  # teleported particles must not stay asleep

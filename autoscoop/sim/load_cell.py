@@ -6,46 +6,28 @@ noise, and hands them to the estimator. The environment uses it when ``env.mass_
 
 The robot's load cell samples far faster than the 4 Hz control loop, and a controller sees its
 reading averaged over the control period. The sensor does the same: it averages the readings of
-every physics step since the previous estimate (a substep observer of :class:`ScoopSim`). That
-matters: particles resting on the servo-held bucket rattle, and single readings swing by a kilogram
-or more around the right mean.
+every physics step since the previous estimate (:class:`ReadingWindow`: the core's
+:class:`~autoscoop.core.payload.ReadingAverage`, which the ROS controller uses too, fed by a substep
+observer of :class:`ScoopSim`). That matters: particles resting on the servo-held bucket rattle, and
+single readings swing by a kilogram or more around the right mean.
 """
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
 from autoscoop.core.config import ScoopConfig
-from autoscoop.core.payload import PayloadCalibration, PayloadEstimator, reported_mass_kg
+from autoscoop.core.payload import (
+    PayloadCalibration,
+    PayloadEstimator,
+    PayloadReading,
+    ReadingAverage,
+    reported_mass_kg,
+)
 from autoscoop.sim.scene import ScoopSim
-
-
-@dataclass(frozen=True)
-class LoadCellReading:
-    """One set of the robot's readings for the payload estimate.
-
-    Attributes:
-        lift_rad: lift angle, rad.
-        tilt_rad: tilt angle, rad.
-        lift_torque_nm: lift actuator torque, N*m.
-        tilt_torque_nm: tilt actuator torque, N*m.
-        chassis_pitch_rad: chassis pitch (IMU), rad, positive nose down.
-    """
-
-    lift_rad: float
-    tilt_rad: float
-    lift_torque_nm: float
-    tilt_torque_nm: float
-    chassis_pitch_rad: float
-
-    def as_array(self) -> np.ndarray:
-        """(5,) array in the field order."""
-        return np.array([self.lift_rad, self.tilt_rad, self.lift_torque_nm, self.tilt_torque_nm,
-                         self.chassis_pitch_rad])
 
 
 def chassis_pitch_rad(sim: ScoopSim) -> float:
@@ -55,32 +37,30 @@ def chassis_pitch_rad(sim: ScoopSim) -> float:
     return float(math.atan2(-rotation[2, 0], rotation[2, 2]))
 
 
-def instant_reading(sim: ScoopSim) -> LoadCellReading:
+def instant_reading(sim: ScoopSim) -> PayloadReading:
     """The noise-free readings at this physics step."""
-    return LoadCellReading(sim.lift_rad, sim.tilt_rad, sim.lift_torque_nm, sim.tilt_torque_nm, chassis_pitch_rad(sim))
+    return PayloadReading(lift_rad=sim.lift_rad, tilt_rad=sim.tilt_rad, lift_torque_nm=sim.lift_torque_nm,
+                          tilt_torque_nm=sim.tilt_torque_nm, chassis_pitch_rad=chassis_pitch_rad(sim))
 
 
 class ReadingWindow:
-    """Averages the readings of every physics step since it was last taken (attach it to a sim)."""
+    """Averages the readings of every physics step since it was last taken (attached to ``sim`` at once).
+
+    A :class:`~autoscoop.core.payload.ReadingAverage` fed by a substep observer of the sim.
+    """
 
     def __init__(self, sim: ScoopSim) -> None:
         self.sim = sim
-        self._sum = np.zeros(5)
-        self._count = 0
+        self.average = ReadingAverage()
         sim.add_substep_observer(self._accumulate)
 
     def _accumulate(self) -> None:
-        self._sum += instant_reading(self.sim).as_array()
-        self._count += 1
+        self.average.add(instant_reading(self.sim))
 
-    def take(self) -> LoadCellReading:
+    def take(self) -> PayloadReading:
         """The mean since the last call (the instantaneous reading when no step was taken), then start over."""
-        if self._count == 0:
-            return instant_reading(self.sim)
-        mean = self._sum / self._count
-        self._sum[:] = 0.0
-        self._count = 0
-        return LoadCellReading(*(float(v) for v in mean))
+        mean = self.average.take()
+        return instant_reading(self.sim) if mean is None else mean
 
     @property
     def attached(self) -> bool:
@@ -123,7 +103,7 @@ class TorqueMassSensor:
 
     @classmethod
     def for_env(cls, config: ScoopConfig, rng: np.random.Generator,
-                calibration: PayloadCalibration | str | Path | None = None) -> "TorqueMassSensor":
+                calibration: PayloadCalibration | str | Path | None = None) -> TorqueMassSensor:
         """The sensor the environment uses: eq. 8, noise ``env.load_cell_noise_nm``, control-period averages.
 
         The noise comes from a child of ``rng`` (one draw), so episodes with the same seed lay out the
@@ -140,7 +120,13 @@ class TorqueMassSensor:
         child = np.random.default_rng(int(rng.integers(2**63)))
         return cls(PayloadEstimator(calibration or PayloadCalibration()), config.env.load_cell_noise_nm, child)
 
-    def read(self, sim: ScoopSim) -> LoadCellReading:
+    def detach(self) -> None:
+        """Stop averaging the sim's physics steps (an episode ended; the environment makes a new sensor)."""
+        if self._window is not None:
+            self._window.detach()
+            self._window = None
+
+    def read(self, sim: ScoopSim) -> PayloadReading:
         """The readings the estimate uses, noise included; the first call attaches the averaging window."""
         if self.average:
             if self._window is None or self._window.sim is not sim or not self._window.attached:
@@ -149,13 +135,13 @@ class TorqueMassSensor:
         else:
             clean = instant_reading(sim)
         noise = self.rng.normal(0.0, self.noise_nm, 2) if self.noise_nm > 0 else np.zeros(2)
-        return LoadCellReading(clean.lift_rad, clean.tilt_rad, clean.lift_torque_nm + float(noise[0]),
-                               clean.tilt_torque_nm + float(noise[1]),
-                               clean.chassis_pitch_rad if self.use_imu_pitch else 0.0)
+        return PayloadReading(lift_rad=clean.lift_rad, tilt_rad=clean.tilt_rad,
+                              lift_torque_nm=clean.lift_torque_nm + float(noise[0]),
+                              tilt_torque_nm=clean.tilt_torque_nm + float(noise[1]),
+                              chassis_pitch_rad=clean.chassis_pitch_rad if self.use_imu_pitch else 0.0)
 
     def estimate(self, sim: ScoopSim) -> float:
         """Payload mass now, kg."""
-        r = self.read(sim)
-        mass = self.estimator.mass_kg(r.lift_rad, r.tilt_rad, r.lift_torque_nm, r.tilt_torque_nm, r.chassis_pitch_rad)
+        mass = self.estimator.mass_kg(self.read(sim))
         self._reported_kg = reported_mass_kg(mass, self._reported_kg, 0.0 if self.clip_negative else -math.inf)
         return self._reported_kg

@@ -6,9 +6,8 @@ This module owns the simulator; the task (state, reward, episode) lives in ``aut
 
 from __future__ import annotations
 
-from dataclasses import replace
+from collections.abc import Callable
 from importlib import resources
-from typing import Callable
 
 import mujoco
 import numpy as np
@@ -170,7 +169,7 @@ class ScoopSim:
     def pile_of_variant(self, variant: int) -> PileConfig:
         """The pile settings of one variant: ``pile.angle_mix_deg`` in turn, if given."""
         mix = self.config.pile.angle_mix_deg
-        return replace(self.config.pile, angle_deg=mix[variant % len(mix)]) if mix else self.config.pile
+        return self.config.pile.replace(angle_deg=mix[variant % len(mix)]) if mix else self.config.pile
 
     @property
     def pile_angle_deg(self) -> float:

@@ -1,1 +1,9 @@
-"""Training runs: the algorithm's settings (``hyperparams/``), run directories, callbacks, checkpoints."""
+"""Training runs (``autoscoop train``), one job per module:
+
+* :mod:`~autoscoop.training.settings`: the algorithm's YAML (``hyperparams/ALGO.yaml``) and ``--hyper`` overrides;
+* :mod:`~autoscoop.training.factories`: the SB3 policy, the exploration noise, the vector environment;
+* :mod:`~autoscoop.training.callbacks`: the per-episode log (``episodes.csv``) and the periodic evaluation;
+* :mod:`~autoscoop.training.checkpoints`: checkpoints, safe actor files, ``run.json``, what resuming reads back;
+* :mod:`~autoscoop.training.run`: :class:`~autoscoop.training.run.TrainArgs`, ``train`` and ``resume``;
+* :mod:`~autoscoop.training.learning_curve`: the paper's Fig. 8 from ``episodes.csv``.
+"""

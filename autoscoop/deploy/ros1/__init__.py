@@ -13,8 +13,9 @@ from __future__ import annotations
 import importlib
 import os
 import sys
+from collections.abc import Callable, Iterable, Mapping
 from types import ModuleType
-from typing import Any, Iterable
+from typing import Any
 
 DEBIAN_PACKAGES = ("python3-rospy", "python3-rosmaster", "python3-std-msgs", "python3-sensor-msgs",
                    "python3-geometry-msgs", "python3-nav-msgs")
@@ -79,8 +80,27 @@ def message_class(topic: str) -> type:
     return getattr(importlib.import_module(module), name)
 
 
-def publishers(topics: Any, names: Iterable[str], queue_size: int = 20) -> dict[str, Any]:
-    """One latency-friendly (``tcp_nodelay``) publisher per topic key, on the names in ``topics`` (a TopicsSection)."""
+def publishers(topics: Any, names: Iterable[str], queue_size: int = 20,
+               tcp_nodelay: bool = True) -> dict[str, Any]:
+    """One publisher per topic key, on the names in ``topics`` (a TopicsSection); latency-friendly
+    (``tcp_nodelay``) unless told otherwise."""
     rospy = import_rospy()
     return {name: rospy.Publisher(getattr(topics, name), message_class(name), queue_size=queue_size,
-                                  tcp_nodelay=True) for name in names}
+                                  tcp_nodelay=tcp_nodelay) for name in names}
+
+
+def subscribers(topics: Any, callbacks: Mapping[str, Callable[[Any], None]],
+                queue_size: int | None = 10) -> dict[str, Any]:
+    """One latency-friendly (``tcp_nodelay``) subscriber per topic key, on the names in ``topics`` (a TopicsSection).
+
+    Args:
+        topics: the topic names (``TopicsSection``).
+        callbacks: per topic key (of :data:`MESSAGE_TYPES`), the function called with each message.
+        queue_size: messages kept per topic while a callback runs; ``None``: unbounded.
+
+    Returns:
+        The subscribers by topic key (``unregister()`` each when done).
+    """
+    rospy = import_rospy()
+    return {name: rospy.Subscriber(getattr(topics, name), message_class(name), callback, queue_size=queue_size,
+                                   tcp_nodelay=True) for name, callback in callbacks.items()}

@@ -44,7 +44,7 @@ class RosMaster:
         self._home = tempfile.mkdtemp(prefix="autoscoop-ros-")
         self.env = {**os.environ, "ROS_MASTER_URI": self.uri, "ROS_HOSTNAME": LOOPBACK, "ROS_IP": LOOPBACK,
                     "ROS_HOME": self._home, "ROS_LOG_DIR": str(Path(self._home) / "log"), "PYTHONUNBUFFERED": "1"}
-        self._log = open(Path(self._home) / "rosmaster.log", "w")  # noqa: SIM115 - closed in stop()
+        self._log = open(Path(self._home) / "rosmaster.log", "w")
         self.process = subprocess.Popen([executable, "--core", "-p", str(self.port), "-w", "3"], env=self.env,
                                         stdout=self._log, stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL)
         deadline = time.monotonic() + startup_timeout_s
@@ -77,7 +77,7 @@ class RosMaster:
         self._log.close()
         shutil.rmtree(self._home, ignore_errors=True)
 
-    def __enter__(self) -> "RosMaster":
+    def __enter__(self) -> RosMaster:
         return self
 
     def __exit__(self, *exc: object) -> None:

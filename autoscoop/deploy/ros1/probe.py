@@ -11,11 +11,12 @@ from __future__ import annotations
 import math
 import threading
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any, Callable
+from typing import Any
 
-from autoscoop.deploy.ros1 import import_rospy, publishers
 from autoscoop.deploy.robot_config import TopicsSection
+from autoscoop.deploy.ros1 import import_rospy, publishers, subscribers
 
 SENSOR_TOPICS = ("joint_states", "odom", "pile_range", "bucket_torque", "lift_torque")
 
@@ -35,13 +36,14 @@ class RobotProbe:
     Args:
         rate_hz: sensor publication rate.
         topics: topic names (the controller's defaults).
-        lift_rad, tilt_rad, speed_mps, range_m, torque_nm, lift_torque_nm: the readings published.
+        lift_rad, tilt_rad, speed_mps, range_m, lift_torque_nm, tilt_torque_nm: the readings published
+            (``tilt_torque_nm`` on ``bucket_torque``).
     """
 
     def __init__(self, rate_hz: float = 50.0, topics: TopicsSection | None = None, lift_rad: float = 0.23,
-                 tilt_rad: float = 0.0, speed_mps: float = 0.0, range_m: float = 0.3, torque_nm: float = -1.0,
-                 lift_torque_nm: float = -20.0) -> None:
-        rospy = self.rospy = import_rospy()
+                 tilt_rad: float = 0.0, speed_mps: float = 0.0, range_m: float = 0.3, lift_torque_nm: float = -20.0,
+                 tilt_torque_nm: float = -1.0) -> None:
+        self.rospy = import_rospy()
         from geometry_msgs.msg import Twist  # noqa: PLC0415
         from nav_msgs.msg import Odometry  # noqa: PLC0415
         from sensor_msgs.msg import JointState, Range  # noqa: PLC0415
@@ -51,8 +53,8 @@ class RobotProbe:
                     "Bool": Bool, "Twist": Twist}
         topics = topics or TopicsSection()
         self.period_s = 1.0 / rate_hz
-        self.values = {"lift": lift_rad, "tilt": tilt_rad, "speed": speed_mps, "range": range_m, "torque": torque_nm,
-                       "lift_torque": lift_torque_nm}
+        self.values = {"lift": lift_rad, "tilt": tilt_rad, "speed": speed_mps, "range": range_m,
+                       "lift_torque": lift_torque_nm, "tilt_torque": tilt_torque_nm}
         self.enabled = {name: True for name in SENSOR_TOPICS}
         self.last_published: dict[str, float] = {}
         self.custom: dict[str, Callable[[], Any]] = {}
@@ -62,11 +64,10 @@ class RobotProbe:
         self._lock = threading.Lock()
         self._stop = threading.Event()
         self.publishers = {**publishers(topics, SENSOR_TOPICS), **publishers(topics, ("estop", "scoop"), queue_size=10)}
-        self.subscribers = [
-            rospy.Subscriber(topics.cmd_vel, Twist, self._record("cmd_vel", lambda m: m.linear.x), tcp_nodelay=True),
-            rospy.Subscriber(topics.lift_command, Float64, self._record("lift", lambda m: m.data), tcp_nodelay=True),
-            rospy.Subscriber(topics.tilt_command, Float64, self._record("tilt", lambda m: m.data), tcp_nodelay=True),
-        ]
+        self.subscribers = list(subscribers(topics, {
+            "cmd_vel": self._record("cmd_vel", lambda m: m.linear.x),
+            "lift_command": self._record("lift", lambda m: m.data),
+            "tilt_command": self._record("tilt", lambda m: m.data)}, queue_size=None).values())
         self._thread = threading.Thread(target=self._run, name="robot-probe", daemon=True)
         self._thread.start()
 
@@ -83,8 +84,8 @@ class RobotProbe:
             msg = self.msg["Range"](min_range=0.0, max_range=4.0, range=v["range"])
         elif topic == "lift_torque":
             return self.msg["Float64"](v["lift_torque"])
-        else:
-            return self.msg["Float64"](v["torque"])
+        else:  # bucket_torque
+            return self.msg["Float64"](v["tilt_torque"])
         msg.header.stamp = stamp
         return msg
 
@@ -200,5 +201,5 @@ def latency_summary(values: list[float]) -> dict[str, float]:
     import numpy as np  # noqa: PLC0415
 
     a = np.asarray(values, dtype=float)
-    return {"n": int(len(a)), "median_s": float(np.median(a)), "p99_s": float(np.percentile(a, 99)),
+    return {"n": len(a), "median_s": float(np.median(a)), "p99_s": float(np.percentile(a, 99)),
             "max_s": float(a.max()), "min_s": float(a.min())}

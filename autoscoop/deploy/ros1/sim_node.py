@@ -20,14 +20,15 @@ from __future__ import annotations
 import math
 import threading
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Callable
+from typing import Any
 
 import numpy as np
 
-from autoscoop.deploy.ros1 import import_rospy, publishers
+from autoscoop.deploy.ros1 import import_rospy, publishers, subscribers
 from autoscoop.deploy.sim_bridge import DelayLine, SensorReadings, SimBridge
-from autoscoop.evaluation.evaluate import EpisodeResult
+from autoscoop.envs.outcome import EpisodeOutcome
 
 NODE_NAME = "autoscoop_sim"
 SETTLE_S = 0.5
@@ -52,72 +53,75 @@ class SimRunStats:
                 "late_steps": self.late_steps}
 
 
-def run_sim_node(bridge: SimBridge, episodes: int, seed: int = 0, delay_s: float = 0.0,
-                 wait_for_controller_s: float = 60.0, on_episode: Callable[[EpisodeResult], None] | None = None,
-                 argv: list[str] | None = None, node_name: str = NODE_NAME) -> tuple[list[EpisodeResult], SimRunStats]:
-    """Run ``episodes`` episodes (0: until shut down) against whatever controller obeys the topics.
+class SimNode:
+    """The simulator behind the robot's topics: one method per callback and per phase of an episode.
+
+    Commands (``cmd_vel``, ``lift_controller/command``, ``tilt_controller/command``) arrive on rospy's
+    threads and queue under :attr:`lock` while the episode is live; :meth:`run` applies them in order
+    before each physics step and publishes each step's readings through a :class:`DelayLine`.
 
     Args:
         bridge: the simulator.
-        episodes: how many; 0 runs until ROS shuts down.
-        seed: seed of the first episode (then ``seed + 1``, ...), as in ``autoscoop eval``.
         delay_s: delay of every sensor message, s.
-        wait_for_controller_s: give up when no controller subscribes to ``scoop`` within this long.
-        on_episode: called with each episode's result.
         argv: command-line arguments with ROS remappings; default ``sys.argv``.
         node_name: the node's name.
-
-    Returns:
-        The episodes' results and the timing statistics.
     """
-    rospy = import_rospy()
-    from geometry_msgs.msg import Twist  # noqa: PLC0415
-    from nav_msgs.msg import Odometry  # noqa: PLC0415
-    from sensor_msgs.msg import JointState, Range  # noqa: PLC0415
-    from std_msgs.msg import Bool, Float64  # noqa: PLC0415
 
-    rospy.init_node(node_name, argv=argv, anonymous=False)
-    topics = bridge.robot.topics
-    lock = threading.Lock()
-    arrived: list[tuple[str, float]] = []
-    """commands received since the last step, applied in order before the next one"""
-    live = threading.Event()
+    def __init__(self, bridge: SimBridge, delay_s: float = 0.0, argv: list[str] | None = None,
+                 node_name: str = NODE_NAME) -> None:
+        self.rospy = rospy = import_rospy()
+        self.bridge = bridge
+        self.delay_s = delay_s
+        self.topics = topics = bridge.robot.topics
+        self.lock = threading.Lock()
+        self.arrived: list[tuple[str, float]] = []
+        """commands received since the last step, applied in order before the next one"""
+        self.first_arrival: float | None = None
+        """when the episode's first command arrived (monotonic s)"""
+        self.live = threading.Event()
+        """set while an episode runs: commands are taken only then"""
+        self.line = DelayLine(delay_s)
+        self.stats = SimRunStats()
+        rospy.init_node(node_name, argv=argv, anonymous=False)
+        self.sensors = publishers(topics, ("joint_states", "odom", "pile_range", "bucket_torque", "lift_torque",
+                                           "payload_mass"))
+        self.scoop = publishers(topics, ("scoop",), queue_size=10)["scoop"]
+        self.subscribers = subscribers(topics, {"cmd_vel": self.on_speed, "lift_command": self.on_lift,
+                                                "tilt_command": self.on_tilt})
 
-    first_arrival: list[float] = []
+    # ---------------------------------------------------------------- commands (rospy's threads)
+    def _command(self, name: str, value: float) -> None:
+        if self.live.is_set():
+            with self.lock:
+                self.arrived.append((name, float(value)))
+                if self.first_arrival is None:
+                    self.first_arrival = time.monotonic()
 
-    def on_command(name: str, value: Callable[[object], float]) -> Callable[[object], None]:
-        def callback(msg: object) -> None:
-            if live.is_set():
-                with lock:
-                    arrived.append((name, float(value(msg))))
-                    if not first_arrival:
-                        first_arrival.append(time.monotonic())
-        return callback
+    def on_speed(self, msg: Any) -> None:
+        """``geometry_msgs/Twist`` on ``cmd_vel``: ``linear.x``, m/s."""
+        self._command("speed", msg.linear.x)
 
-    def first_command(deadline: float) -> float:
-        """When the controller's first command of the episode arrived (or the deadline, if none did)."""
-        while time.monotonic() < deadline and not rospy.is_shutdown():
-            publish_due()
-            with lock:
-                if first_arrival:
-                    return first_arrival[0]
-            time.sleep(0.0005)
-        return deadline
+    def on_lift(self, msg: Any) -> None:
+        """``std_msgs/Float64`` on the lift command, rad."""
+        self._command("lift", msg.data)
 
-    sensors = publishers(topics, ("joint_states", "odom", "pile_range", "bucket_torque", "lift_torque",
-                                  "payload_mass"))
-    scoop = publishers(topics, ("scoop",), queue_size=10)["scoop"]
-    subscribers = [
-        rospy.Subscriber(topics.cmd_vel, Twist, on_command("speed", lambda m: m.linear.x), queue_size=10,
-                         tcp_nodelay=True),
-        rospy.Subscriber(topics.lift_command, Float64, on_command("lift", lambda m: m.data), queue_size=10,
-                         tcp_nodelay=True),
-        rospy.Subscriber(topics.tilt_command, Float64, on_command("tilt", lambda m: m.data), queue_size=10,
-                         tcp_nodelay=True)]
-    line = DelayLine(delay_s)
+    def on_tilt(self, msg: Any) -> None:
+        """``std_msgs/Float64`` on the tilt command, rad."""
+        self._command("tilt", msg.data)
 
-    def messages(r: SensorReadings) -> list[tuple[str, object]]:
-        stamp = rospy.Time.now()
+    def _take_commands(self) -> list[tuple[str, float]]:
+        with self.lock:
+            received, self.arrived = self.arrived, []
+        return received
+
+    # ---------------------------------------------------------------- sensors
+    def messages(self, r: SensorReadings) -> list[tuple[str, object]]:
+        """The sensor messages of one set of readings, stamped now."""
+        from nav_msgs.msg import Odometry  # noqa: PLC0415
+        from sensor_msgs.msg import JointState, Range  # noqa: PLC0415
+        from std_msgs.msg import Float64  # noqa: PLC0415
+
+        stamp = self.rospy.Time.now()
         joints = JointState(name=list(r.joint_names), position=list(r.joint_positions))
         joints.header.stamp = stamp
         odom = Odometry()
@@ -130,97 +134,133 @@ def run_sim_node(bridge: SimBridge, episodes: int, seed: int = 0, delay_s: float
                          range=r.range_m)
         distance.header.stamp, distance.header.frame_id = stamp, "bucket_tip"
         return [("joint_states", joints), ("odom", odom), ("pile_range", distance),
-                ("bucket_torque", Float64(r.torque_nm)), ("lift_torque", Float64(r.lift_torque_nm)),
+                ("bucket_torque", Float64(r.tilt_torque_nm)), ("lift_torque", Float64(r.lift_torque_nm)),
                 ("payload_mass", Float64(r.payload_kg))]
 
-    def publish_due() -> None:
-        for name, msg in line.pop_due(time.monotonic()):
-            sensors[name].publish(msg)
+    def sample(self, r: SensorReadings) -> None:
+        """Queue the messages of ``r`` on the delay line."""
+        now = time.monotonic()
+        for item in self.messages(r):
+            self.line.push(now, item)
 
-    def wait_until(deadline: float) -> None:
-        while not rospy.is_shutdown():
+    def publish_due(self) -> None:
+        """Publish the messages whose delay has passed."""
+        for name, msg in self.line.pop_due(time.monotonic()):
+            self.sensors[name].publish(msg)
+
+    def wait_until(self, deadline: float) -> None:
+        """Publish due messages until ``deadline`` (monotonic s)."""
+        while not self.rospy.is_shutdown():
             now = time.monotonic()
-            publish_due()
+            self.publish_due()
             if now >= deadline:
                 return
-            time.sleep(max(0.0, min(deadline, line.next_due()) - time.monotonic()))
+            time.sleep(max(0.0, min(deadline, self.line.next_due()) - time.monotonic()))
 
-    def sample(r: SensorReadings) -> None:
-        now = time.monotonic()
-        for item in messages(r):
-            line.push(now, item)
+    def first_command(self, deadline: float) -> float:
+        """When the controller's first command of the episode arrived (or the deadline, if none did)."""
+        while time.monotonic() < deadline and not self.rospy.is_shutdown():
+            self.publish_due()
+            with self.lock:
+                if self.first_arrival is not None:
+                    return self.first_arrival
+            time.sleep(0.0005)
+        return deadline
 
-    results: list[EpisodeResult] = []
-    stats = SimRunStats()
-    period = bridge.sensor_period_s
-    try:
+    # ---------------------------------------------------------------- episodes
+    def wait_for_controller(self, timeout_s: float) -> None:
+        """Wait until a controller subscribes to ``scoop``; note its ``~policy`` parameter if it has one."""
+        rospy = self.rospy
         waited = time.monotonic()
-        while scoop.get_num_connections() == 0 and not rospy.is_shutdown():
-            if time.monotonic() - waited > wait_for_controller_s:
-                raise TimeoutError(f"no controller subscribed to {rospy.resolve_name(topics.scoop)} within "
-                                   f"{wait_for_controller_s:g} s; start `autoscoop ros controller`")
+        while self.scoop.get_num_connections() == 0 and not rospy.is_shutdown():
+            if time.monotonic() - waited > timeout_s:
+                raise TimeoutError(f"no controller subscribed to {rospy.resolve_name(self.topics.scoop)} within "
+                                   f"{timeout_s:g} s; start `autoscoop ros controller`")
             time.sleep(0.05)
-        for node in _publishers_of(rospy, topics.cmd_vel):
+        for node in _publishers_of(rospy, self.topics.cmd_vel):
             try:
-                stats.controller_policy = str(rospy.get_param(f"{node}/policy"))
+                self.stats.controller_policy = str(rospy.get_param(f"{node}/policy"))
                 break
             except KeyError:
                 continue
-        index = 0
-        while not rospy.is_shutdown() and (episodes == 0 or index < episodes):
-            live.clear()
-            readings = bridge.reset(seed + index)
-            with lock:
-                arrived.clear()
-                first_arrival.clear()
-            hold_until = time.monotonic() + SETTLE_S + delay_s
-            tick = time.monotonic()
-            while time.monotonic() < hold_until and not rospy.is_shutdown():
-                sample(readings)
-                tick += period
-                wait_until(tick)
-            live.set()
-            scoop.publish(Bool(True))
-            tick = first_command(time.monotonic() + FIRST_COMMAND_TIMEOUT_S) + period / 2
-            wait_until(tick)
-            start_wall = time.monotonic()
-            while not bridge.done and not rospy.is_shutdown():
-                with lock:
-                    received, arrived[:] = list(arrived), []
-                for name, value in received:
-                    if name == "speed":
-                        bridge.command_speed(value)
-                    else:
-                        bridge.command_joint(name, value)
-                readings = bridge.step()
-                sample(readings)
-                tick += period
-                if time.monotonic() > tick:
-                    stats.late_steps += 1
-                    tick = max(tick, time.monotonic() - 2 * period)  # behind: catch up a little, never in a burst
-                wait_until(tick)
-            live.clear()
-            scoop.publish(Bool(False))
-            if not bridge.done:
-                break
-            result = bridge.result()
-            stats.sim_s.append(readings.time_s)
-            stats.wall_s.append(time.monotonic() - start_wall)
-            results.append(result)
-            rospy.loginfo(f"episode {index} (seed {result.seed}): fill {result.fill_factor:.2f}, "
-                          f"success {result.success}, {readings.time_s:.2f} s")
-            if on_episode is not None:
-                on_episode(result)
-            index += 1
-    finally:
-        for subscriber in subscribers:
-            subscriber.unregister()
-        if not rospy.is_shutdown():
-            rospy.signal_shutdown("simulation finished")
-    return results, stats
+
+    def episode(self, seed: int) -> tuple[EpisodeOutcome | None, float]:
+        """One episode: reset and settle, ``scoop`` true, physics in real time, ``scoop`` false.
+
+        Returns:
+            The outcome (``None`` when ROS shut down before the episode ended) and the simulated time, s.
+        """
+        from std_msgs.msg import Bool  # noqa: PLC0415
+
+        rospy, bridge, period = self.rospy, self.bridge, self.bridge.sensor_period_s
+        self.live.clear()
+        readings = bridge.reset(seed)
+        with self.lock:
+            self.arrived.clear()
+            self.first_arrival = None
+        hold_until = time.monotonic() + SETTLE_S + self.delay_s
+        tick = time.monotonic()
+        while time.monotonic() < hold_until and not rospy.is_shutdown():
+            self.sample(readings)
+            tick += period
+            self.wait_until(tick)
+        self.live.set()
+        self.scoop.publish(Bool(True))
+        tick = self.first_command(time.monotonic() + FIRST_COMMAND_TIMEOUT_S) + period / 2
+        self.wait_until(tick)
+        start_wall = time.monotonic()
+        while not bridge.done and not rospy.is_shutdown():
+            for name, value in self._take_commands():
+                if name == "speed":
+                    bridge.command_speed(value)
+                else:
+                    bridge.command_joint(name, value)
+            readings = bridge.step()
+            self.sample(readings)
+            tick += period
+            if time.monotonic() > tick:
+                self.stats.late_steps += 1
+                tick = max(tick, time.monotonic() - 2 * period)  # behind: catch up a little, never in a burst
+            self.wait_until(tick)
+        self.live.clear()
+        self.scoop.publish(Bool(False))
+        if not bridge.done:
+            return None, readings.time_s
+        self.stats.sim_s.append(readings.time_s)
+        self.stats.wall_s.append(time.monotonic() - start_wall)
+        return bridge.result(), readings.time_s
+
+    def run(self, episodes: int, seed: int = 0, wait_for_controller_s: float = 60.0,
+            on_episode: Callable[[EpisodeOutcome], None] | None = None) -> tuple[list[EpisodeOutcome], SimRunStats]:
+        """Run ``episodes`` episodes (0: until shut down), seeds ``seed``, ``seed + 1``, ...; then unsubscribe.
+
+        Returns:
+            The episodes' outcomes and the timing statistics.
+        """
+        rospy = self.rospy
+        results: list[EpisodeOutcome] = []
+        try:
+            self.wait_for_controller(wait_for_controller_s)
+            index = 0
+            while not rospy.is_shutdown() and (episodes == 0 or index < episodes):
+                result, sim_s = self.episode(seed + index)
+                if result is None:
+                    break
+                results.append(result)
+                rospy.loginfo(f"episode {index} (seed {result.seed}): fill {result.fill_factor:.2f}, "
+                              f"success {result.success}, {sim_s:.2f} s")
+                if on_episode is not None:
+                    on_episode(result)
+                index += 1
+        finally:
+            for subscriber in self.subscribers.values():
+                subscriber.unregister()
+            if not rospy.is_shutdown():
+                rospy.signal_shutdown("simulation finished")
+        return results, self.stats
 
 
-def _publishers_of(rospy, topic: str) -> list[str]:  # noqa: ANN001 - the rospy module
+def _publishers_of(rospy, topic: str) -> list[str]:
     """Names of the nodes that publish ``topic`` (from the master)."""
     import rosgraph  # noqa: PLC0415 - comes with rospy
 

@@ -1,0 +1,170 @@
+"""What runs during training: the per-episode log (CSV, TensorBoard, noise decay, checkpoints, the stop at N)
+and the periodic evaluation that keeps the best policy."""
+
+from __future__ import annotations
+
+import csv
+import math
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from stable_baselines3.common.callbacks import BaseCallback
+from tqdm import tqdm
+
+from autoscoop.agents.loading import SB3Policy
+from autoscoop.core.config import ScoopConfig
+from autoscoop.envs.rollout import rollout
+from autoscoop.envs.scoop import make_scoop_env
+from autoscoop.training.checkpoints import actor_meta, save_checkpoint, save_safe_actor
+from autoscoop.training.factories import set_noise_scale
+
+CSV_FIELDS = ["episode", "reward", "fill_factor", "cycle_time_s", "success", "steps", "spilled", "physics_error",
+              "wall_s"]
+"""The columns of ``episodes.csv``, one row per training episode."""
+EVALUATION_FIELDS = ["episode", "delivered_fill", "fill_factor", "success", "cycle_time_s"]
+"""The columns of ``evaluations.csv``, one row per periodic evaluation."""
+
+
+class EpisodeLogger(BaseCallback):
+    """Counts episodes, writes the CSV and TensorBoard scalars, decays the noise, checkpoints, stops at N.
+
+    Args:
+        run_dir: the run directory.
+        episodes: stop after this many episodes in total.
+        done: episodes already done (when resuming).
+        spec: the algorithm's YAML (noise schedule).
+        checkpoint_every: episodes between checkpoints.
+        progress: show a progress bar.
+        evaluator: the periodic evaluation, or ``None``.
+        control_period_s: the environment's control period (an episode's steps from its elapsed time).
+        evaluate_at_start: evaluate the starting policy before learning (fine-tuning: it is the bar).
+    """
+
+    def __init__(self, run_dir: Path, episodes: int, done: int, spec: dict[str, Any], checkpoint_every: int,
+                 progress: bool, evaluator: PolicyEvaluator | None = None, control_period_s: float = 0.25,
+                 evaluate_at_start: bool = False) -> None:
+        super().__init__()
+        self.evaluate_at_start = evaluate_at_start
+        self.control_period_s = control_period_s
+        self.run_dir, self.episodes, self.done = run_dir, episodes, done
+        self.evaluator = evaluator
+        self.spec, self.checkpoint_every = spec, checkpoint_every
+        self.returns: dict[int, float] = {}
+        self.recent: list[dict[str, Any]] = []
+        self.started = time.time()
+        self._checkpoint_due = False
+        self.bar = tqdm(total=episodes, initial=done, desc="train", unit="ep", disable=not progress)
+        self.csv_file = open(run_dir / "episodes.csv", "a", newline="")
+        self.csv = csv.DictWriter(self.csv_file, fieldnames=CSV_FIELDS)
+        if done == 0:
+            self.csv.writeheader()
+
+    def _on_training_start(self) -> None:
+        self._update_noise()
+        if self.evaluate_at_start and self.evaluator is not None:  # fine-tuning: the starting policy is the bar
+            self.evaluator.evaluate(self.model, 0, self.logger)
+
+    def _update_noise(self) -> None:
+        noise_spec = self.spec.get("noise")
+        noise = getattr(self.model, "action_noise", None)
+        if noise_spec and noise is not None:
+            fraction = min(self.done / max(self.episodes, 1), 1.0)
+            set_noise_scale(noise, noise_spec["sigma_start"] + fraction * (noise_spec["sigma_end"] - noise_spec["sigma_start"]))
+
+    def _on_step(self) -> bool:
+        rewards, dones, infos = self.locals["rewards"], self.locals["dones"], self.locals["infos"]
+        for i, (reward, done, info) in enumerate(zip(rewards, dones, infos)):
+            self.returns[i] = self.returns.get(i, 0.0) + float(reward)
+            if done:
+                self.end_episode(i, info)
+                if self.done >= self.episodes:
+                    return False
+        return True
+
+    def end_episode(self, env_index: int, info: dict[str, Any]) -> None:
+        """Log the episode environment ``env_index`` just ended (its last ``info``); evaluate, checkpoint when due."""
+        self.done += 1
+        row = {"episode": self.done, "reward": self.returns.pop(env_index, 0.0), "fill_factor": info["fill_factor"],
+               "cycle_time_s": info.get("cycle_time_s", math.nan), "success": int(info["success"]),
+               "steps": int(round(info["elapsed_s"] / self.control_period_s)), "spilled": info["spilled"],
+               "physics_error": int(info["physics_error"]), "wall_s": round(time.time() - self.started, 2)}
+        self.csv.writerow(row)
+        self.csv_file.flush()
+        self.recent = (self.recent + [row])[-20:]
+        successes = [r for r in self.recent if r["success"]]
+        self.logger.record("scoop/fill_factor", row["fill_factor"])
+        self.logger.record("scoop/success", row["success"])
+        self.logger.record("scoop/episode_reward", row["reward"])
+        if row["success"]:
+            self.logger.record("scoop/cycle_time_s", row["cycle_time_s"])
+        self.bar.update(1)
+        self.bar.set_postfix(fill=f"{np.mean([r['fill_factor'] for r in self.recent]):.2f}",
+                             cycle=f"{np.mean([r['cycle_time_s'] for r in successes]):.1f}" if successes else "-",
+                             success=f"{len(successes) / len(self.recent):.2f}")
+        self._update_noise()
+        if self.evaluator is not None and (self.done % self.evaluator.every == 0 or self.done == self.episodes):
+            self.evaluator.evaluate(self.model, self.done, self.logger)
+        if self.done % self.checkpoint_every == 0 and self.done < self.episodes:
+            self._checkpoint_due = True
+
+    def _on_rollout_end(self) -> None:
+        # after the rollout's transitions are in the replay buffer (not yet in _on_step)
+        if self._checkpoint_due:
+            save_checkpoint(self.model, self.run_dir, self.done)
+            self._checkpoint_due = False
+
+    def _on_training_end(self) -> None:
+        self.bar.close()
+        self.csv_file.close()
+
+
+class PolicyEvaluator:
+    """Evaluates the deterministic policy every ``every`` episodes and keeps the best as ``policy.*``.
+
+    The score is the delivered fill: the fill factor of successful episodes, zero for failures
+    (what a loader is for). Seeds are fixed, so every evaluation sees the same piles.
+    """
+
+    SEED = 10_000
+
+    def __init__(self, run_dir: Path, config: ScoopConfig, every: int, episodes: int, info: dict[str, Any]) -> None:
+        self.run_dir, self.every, self.episodes, self.info = run_dir, every, episodes, info
+        self.env = make_scoop_env(config)
+        self.best = float(info.get("best_score", -1.0))
+        path = run_dir / "evaluations.csv"
+        self.csv_file = open(path, "a", newline="")
+        self.csv = csv.DictWriter(self.csv_file, fieldnames=EVALUATION_FIELDS)
+        if path.stat().st_size == 0:
+            self.csv.writeheader()
+
+    def evaluate(self, model: Any, episode: int, logger: Any) -> float:
+        """Run the evaluation; save the policy if it is the best so far; return its score."""
+        policy = SB3Policy(model, name="training")
+        results = [rollout(policy, self.env, self.SEED + i) for i in range(self.episodes)]
+        fills = [r.fill_factor for r in results]
+        successes = [r.success for r in results]
+        cycles = [r.cycle_time_s for r in results if r.success]
+        score = float(np.mean([f if s else 0.0 for f, s in zip(fills, successes)]))
+        row = {"episode": episode, "delivered_fill": round(score, 4), "fill_factor": round(float(np.mean(fills)), 4),
+               "success": round(float(np.mean(successes)), 3),
+               "cycle_time_s": round(float(np.mean(cycles)), 3) if cycles else math.nan}
+        self.csv.writerow(row)
+        self.csv_file.flush()
+        logger.record("eval/delivered_fill", score)
+        logger.record("eval/success", row["success"])
+        # every evaluated actor stays (80 kB each): a policy judged on more episodes later can be picked
+        meta = {**actor_meta(self.info, self.run_dir), "selected_at_episode": episode}
+        save_safe_actor(model, self.run_dir / "evaluated" / f"episode_{episode:05d}.safetensors",
+                        {**meta, "evaluation_delivered_fill": score})
+        if score > self.best:
+            self.best = score
+            model.save(self.run_dir / "policy.zip")
+            save_safe_actor(model, self.run_dir / "policy.safetensors", {**meta, "selection_score_delivered_fill": score})
+            self.info.update(best_score=score, best_episode=episode)
+        return score
+
+    def close(self) -> None:
+        self.csv_file.close()
+        self.env.close()

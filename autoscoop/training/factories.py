@@ -1,0 +1,60 @@
+"""What a training run is built from: the policy class, the exploration noise and the vector environment."""
+
+from __future__ import annotations
+
+from functools import partial
+from typing import Any
+
+import numpy as np
+from stable_baselines3.common.noise import NormalActionNoise, OrnsteinUhlenbeckActionNoise, VectorizedActionNoise
+from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv
+
+from autoscoop.agents import sb3_policies
+from autoscoop.agents.networks import PAPER_LAYERS
+from autoscoop.core.config import ScoopConfig
+from autoscoop.core.state import ACTION_SIZE
+from autoscoop.envs.scoop import make_scoop_env
+
+
+def make_policy(algo: str, spec: dict[str, Any]) -> tuple[Any, dict[str, Any]]:
+    """The SB3 policy (class or name) and its keyword arguments for ``algo``.
+
+    ``policy: paper`` in the algorithm's YAML gives the paper's networks (:mod:`autoscoop.agents.sb3_policies`;
+    PPO: an MLP of the paper's layer sizes on the normalised state); anything else SB3's ``MlpPolicy``.
+    """
+    if spec.get("policy") != "paper":
+        return "MlpPolicy", {}
+    if algo in ("ddpg", "td3"):
+        return sb3_policies.PaperPolicy, {}
+    if algo == "sac":
+        return sb3_policies.PaperSACPolicy, {}
+    return "MlpPolicy", {"net_arch": {"pi": list(PAPER_LAYERS), "vf": list(PAPER_LAYERS)},
+                         "features_extractor_class": sb3_policies.NormalizedState}
+
+
+def make_noise(spec: dict[str, Any], n_envs: int) -> Any:
+    """The exploration noise the YAML's ``noise`` section names, at ``sigma_start``; ``None`` without one."""
+    noise_spec = spec.get("noise")
+    if not noise_spec:
+        return None
+    mean, sigma = np.zeros(ACTION_SIZE), np.full(ACTION_SIZE, noise_spec["sigma_start"])
+    if noise_spec["type"] == "ornstein_uhlenbeck":
+        base = OrnsteinUhlenbeckActionNoise(mean, sigma, theta=noise_spec.get("theta", 0.15), dt=1.0)
+    else:
+        base = NormalActionNoise(mean, sigma)
+    return VectorizedActionNoise(base, n_envs) if n_envs > 1 else base
+
+
+def set_noise_scale(noise: Any, sigma: float) -> None:
+    """Set the exploration noise's standard deviation (all environments)."""
+    for part in getattr(noise, "noises", [noise]):
+        if part is not None:
+            part._sigma = np.full(ACTION_SIZE, sigma)
+
+
+def make_vec_env(config: ScoopConfig, n_envs: int, seed: int) -> Any:
+    """``n_envs`` scoop environments (in subprocesses when more than one), seeded from ``seed``."""
+    factories = [partial(make_scoop_env, config) for _ in range(n_envs)]
+    vec = SubprocVecEnv(factories, start_method="fork") if n_envs > 1 else DummyVecEnv(factories)
+    vec.seed(seed)
+    return vec
