@@ -239,3 +239,106 @@ def test_demonstrations_need_an_off_policy_algorithm(tmp_path):
         train_mod.train(train_mod.TrainArgs(algo="ppo", episodes=2, out=tmp_path / "run", progress=False,
                                             demo_episodes=1))
     assert not (tmp_path / "run").exists()
+
+
+def _interrupted_run_json(run_dir: Path) -> None:
+    run_dir.mkdir(parents=True, exist_ok=True)
+    (run_dir / "run.json").write_text(json.dumps({"algo": "ddpg", "seed": 0, "episodes": 8, "n_envs": 1,
+                                                  "checkpoint_every": 4, "status": "running", "wall_s": 0.0}))
+
+
+def _lock_is_free(run_dir: Path) -> bool:
+    from filelock import FileLock, Timeout
+
+    lock = FileLock(run_dir / ".lock", timeout=0)
+    try:
+        lock.acquire()
+    except Timeout:
+        return False
+    lock.release()
+    return True
+
+
+def test_a_run_directory_is_locked_while_a_process_writes_it(tmp_path, monkeypatch, capsys):
+    import socket
+
+    from filelock import FileLock
+
+    from autoscoop.training import run as train_mod
+    from autoscoop.training.checkpoints import lock_run_dir
+
+    run_dir = tmp_path / "run"
+    _interrupted_run_json(run_dir)
+    # held by another writer: resume and train into it stop at once, naming the directory and the holder
+    with lock_run_dir(run_dir):
+        holder = json.loads((run_dir / "lock.json").read_text())
+        assert holder["pid"] == os.getpid() and holder["host"] == socket.gethostname() and holder["started"]
+        with pytest.raises(ValueError, match="being written by another") as error:
+            train_mod.resume(run_dir, progress=False)
+        assert str(run_dir) in str(error.value) and f"pid {os.getpid()} on {socket.gethostname()}" in str(error.value)
+        assert main(["train", "--resume", str(run_dir), "--no-progress"]) == 2
+        assert main(["train", "--episodes", "1", "--out", str(run_dir), *FAST]) == 2
+        err = capsys.readouterr().err
+        assert err.count("being written by another") == 2 and f"pid {os.getpid()}" in err and str(run_dir) in err
+    assert not (run_dir / "lock.json").exists() and _lock_is_free(run_dir)
+    # a lock held without a holder file (plain filelock) is refused too
+    with FileLock(run_dir / ".lock"):
+        with pytest.raises(ValueError, match="holder unknown") as error:
+            train_mod.resume(run_dir, progress=False)
+        assert str(run_dir) in str(error.value)
+
+    # train holds the lock for the whole run and releases it at the end, and on an exception
+    seen = {}
+
+    def fake_run(run_dir, *args, **kwargs):
+        seen["pid"] = json.loads((run_dir / "lock.json").read_text())["pid"]
+        seen["free"] = _lock_is_free(run_dir)
+        if seen.get("crash"):
+            raise RuntimeError("simulated failure")
+        return run_dir
+
+    monkeypatch.setattr(train_mod, "_run", fake_run)
+    new = tmp_path / "new"
+    assert train_mod.train(train_mod.TrainArgs(episodes=1, out=new, progress=False)) == new
+    assert seen == {"pid": os.getpid(), "free": False}
+    assert not (new / "lock.json").exists() and _lock_is_free(new)
+    seen["crash"] = True
+    with pytest.raises(RuntimeError, match="simulated"):
+        train_mod.train(train_mod.TrainArgs(episodes=1, out=tmp_path / "crash", progress=False))
+    assert seen["free"] is False and _lock_is_free(tmp_path / "crash")
+    assert not (tmp_path / "crash" / "lock.json").exists()
+
+
+def test_resume_refuses_episodes(tmp_path, monkeypatch, capsys):
+    import yaml
+
+    from autoscoop.core.config import save_yaml
+    from autoscoop.training import run as train_mod
+    from autoscoop.training.settings import load_hyperparams
+
+    run_dir = tmp_path / "run"
+    _interrupted_run_json(run_dir)
+    save_yaml(ScoopConfig(), run_dir / "config.yaml")
+    (run_dir / "hyperparams.yaml").write_text(yaml.safe_dump(load_hyperparams("ddpg")))
+    resumed = []
+    monkeypatch.setattr(train_mod, "_run", lambda run_dir, config, spec, info, **kwargs: resumed.append(info) or run_dir)
+    assert main(["train", "--resume", str(run_dir), "--episodes", "20", "--no-progress"]) == 2
+    err = capsys.readouterr().err
+    assert "--episodes" in err and "keeps the episode count" in err
+    assert not resumed and json.loads((run_dir / "run.json").read_text())["episodes"] == 8
+    assert main(["train", "--resume", str(run_dir), "--no-progress"]) == 0  # without it: resumed, with its count
+    assert [info["episodes"] for info in resumed] == [8]
+
+
+def test_resume_of_a_run_json_alone_names_the_missing_files(tmp_path, capsys):
+    run_dir = tmp_path / "run"
+    _interrupted_run_json(run_dir)
+    assert main(["train", "--resume", str(run_dir), "--no-progress"]) == 2
+    err = capsys.readouterr().err
+    assert str(run_dir / "config.yaml") in err and str(run_dir / "hyperparams.yaml") in err
+    assert "Traceback" not in err
+    (run_dir / "config.yaml").write_text(__import__("yaml").safe_dump({}))
+    assert main(["train", "--resume", str(run_dir), "--no-progress"]) == 2
+    err = capsys.readouterr().err
+    assert str(run_dir / "hyperparams.yaml") in err and str(run_dir / "config.yaml") not in err
+    assert _lock_is_free(run_dir)  # released after the refusal

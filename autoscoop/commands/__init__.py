@@ -5,10 +5,55 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import os
 from pathlib import Path
 from typing import Any
 
 from autoscoop.core.config import ScoopConfig, load_yaml, parse_set_args
+
+
+def seed_int(text: str) -> int:
+    """``type=`` of every ``--seed`` option: an integer, 0 or more (argparse names the option on failure)."""
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"must be an integer, 0 or more; got {text!r}") from None
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"must be 0 or more (allowed range: [0, inf)); got {value}")
+    return value
+
+
+def check_output_file(path: Path, option: str) -> None:
+    """Fail now (ValueError, exit 2) if ``path`` could not be written later: a folder, or under a
+    non-folder or a read-only folder. Missing folders are fine (:func:`write_json` creates them)."""
+    if path.is_dir():
+        raise ValueError(f"{option} {path}: is a folder, not a file")
+    parent = path.parent
+    while not parent.exists() and parent != parent.parent:
+        parent = parent.parent
+    if not parent.is_dir():
+        raise ValueError(f"{option} {path}: cannot be written, {parent} is not a folder")
+    if not os.access(parent, os.W_OK | os.X_OK):
+        raise ValueError(f"{option} {path}: cannot be written, folder {parent} is not writable")
+
+
+def prepare_records_dir(path: Path, overwrite: bool, option: str = "--records") -> None:
+    """Refuse (ValueError, exit 2) a records folder that is a file or is not empty, unless ``overwrite``:
+    then its ``episode_*.npz`` records are removed (other files are left, and still refused if any)."""
+    if path.exists() and not path.is_dir():
+        raise ValueError(f"{option} {path}: is a file, not a folder")
+    if not path.is_dir():
+        check_output_file(path / "episode_00000.npz", option)
+        return
+    if overwrite:
+        for record in path.glob("episode_*.npz"):
+            record.unlink()
+    left = sorted(entry.name for entry in path.iterdir())
+    if left:
+        shown = ", ".join(left[:3]) + (", ..." if len(left) > 3 else "")
+        hint = ("--overwrite removes only episode_*.npz records; move the other files away"
+                if overwrite else "use an empty or new folder, or --overwrite to replace its episode_*.npz records")
+        raise ValueError(f"{option} {path}: folder is not empty ({len(left)} entries: {shown}); {hint}")
 
 
 def add_config_args(parser: argparse.ArgumentParser) -> None:

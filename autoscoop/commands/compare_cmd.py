@@ -17,7 +17,7 @@ import time
 from pathlib import Path
 
 from autoscoop.agents.loading import load_policy
-from autoscoop.commands import add_config_args, config_from_args, write_json
+from autoscoop.commands import add_config_args, config_from_args, seed_int, write_json
 from autoscoop.evaluation.evaluate import evaluate, format_table, summarize
 
 PILE_ANGLES_DEG = (25.0, 32.0, 40.0)
@@ -33,7 +33,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument("--angles", nargs="+", type=float, default=list(PILE_ANGLES_DEG),
                         help="pile angles, degrees (default 25 32 40)")
     parser.add_argument("--episodes", type=int, default=100, help="episodes per controller and pile (default 100)")
-    parser.add_argument("--seed", type=int, default=0, help="seed of the first episode")
+    parser.add_argument("--seed", type=seed_int, default=0, help="seed of the first episode")
     parser.add_argument("--manual", nargs="*", type=Path, default=None,
                         help=f"folders or files of manual episode records (default {DEFAULT_MANUAL} if it exists)")
     parser.add_argument("--out", type=Path, default=Path("out/compare"), help="output folder (default out/compare)")

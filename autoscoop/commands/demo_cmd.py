@@ -13,7 +13,7 @@ import time
 from pathlib import Path
 
 from autoscoop.agents.loading import load_policy
-from autoscoop.commands import add_config_args, config_from_args, write_json
+from autoscoop.commands import add_config_args, config_from_args, seed_int, write_json
 from autoscoop.core.config import ScoopConfig
 from autoscoop.core.policy import Policy
 from autoscoop.evaluation.evaluate import evaluate, format_table, summarize
@@ -26,7 +26,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                                    description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--policy", default="default", help="default (the shipped policy), heuristic or a policy file")
     parser.add_argument("--episodes", type=int, default=10, help="episodes for the metrics table (default 10)")
-    parser.add_argument("--seed", type=int, default=0, help="seed of the first episode, the one filmed")
+    parser.add_argument("--seed", type=seed_int, default=0, help="seed of the first episode, the one filmed")
     parser.add_argument("--out", type=Path, default=DEFAULT_OUT, help=f"output folder (default {DEFAULT_OUT})")
     parser.add_argument("--fps", type=float, default=16.0, help="video frames per simulated second (default 16)")
     parser.add_argument("--no-video", action="store_true", help="skip the video (figures and table only)")

@@ -13,7 +13,7 @@ import argparse
 import math
 from pathlib import Path
 
-from autoscoop.commands import add_config_args, config_from_args, write_json
+from autoscoop.commands import add_config_args, config_from_args, seed_int, write_json
 from autoscoop.core.config import ConfigError, ScoopConfig, parse_set_args
 
 
@@ -40,7 +40,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     sim = nodes.add_parser("sim", help="the MuJoCo scene behind the robot's topics (like Gazebo)",
                            description=_SIM_DOC, formatter_class=argparse.RawDescriptionHelpFormatter)
     sim.add_argument("--episodes", type=int, default=0, help="episodes to run, then exit (default 0: until stopped)")
-    sim.add_argument("--seed", type=int, default=0, help="seed of the first episode (as in autoscoop eval)")
+    sim.add_argument("--seed", type=seed_int, default=0, help="seed of the first episode (as in autoscoop eval)")
     sim.add_argument("--json", type=Path, help="write the summary (as autoscoop eval does) to this JSON file")
     sim.add_argument("--delay-s", type=float, default=0.0, help="delay of every sensor message, s (default 0)")
     sim.add_argument("--joint-noise-rad", type=float, default=0.0, help="noise (std) on the joint angles, rad")

@@ -13,7 +13,7 @@ import argparse
 import os
 from pathlib import Path
 
-from autoscoop.commands import add_config_args, config_from_args
+from autoscoop.commands import add_config_args, config_from_args, seed_int
 
 MANUAL_TIME_LIMIT_S = 20.0
 """Episode limit for people: the paper's manual cycles took 10 s on average, against 8 s for the controller's limit."""
@@ -24,7 +24,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                                    description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--out", type=Path, default=Path("out/manual"), help="folder for the records (default out/manual)")
     parser.add_argument("--episodes", type=int, default=0, help="stop after this many episodes (default: until the window closes)")
-    parser.add_argument("--seed", type=int, default=0, help="seed of the first episode")
+    parser.add_argument("--seed", type=seed_int, default=0, help="seed of the first episode")
     parser.add_argument("--speed", type=float, default=1.0, help="simulated seconds per wall second (0.5: half speed)")
     parser.add_argument("--time-limit", type=float, default=MANUAL_TIME_LIMIT_S,
                         help=f"episode time limit, s (default {MANUAL_TIME_LIMIT_S:g}; the controllers get 8)")

@@ -8,12 +8,17 @@ from pathlib import Path
 from autoscoop.commands import add_config_args
 from autoscoop.core.config import overrides_from_yaml, parse_set_args
 
+DEFAULT_EPISODES = 800
+"""training episodes of a new run when ``--episodes`` is not given (the paper's)."""
+
 
 def register(subparsers: argparse._SubParsersAction) -> None:
     parser = subparsers.add_parser("train", help="train a controller", description=__doc__)
     parser.add_argument("--algo", default="ddpg", choices=["ddpg", "td3", "sac", "ppo"],
                         help="algorithm (default ddpg, the paper's); settings in autoscoop/training/hyperparams/ALGO.yaml")
-    parser.add_argument("--episodes", type=int, default=800, help="training episodes (default 800, as in the paper)")
+    parser.add_argument("--episodes", type=int, default=None,
+                        help=f"training episodes (default {DEFAULT_EPISODES}, as in the paper; "
+                             "not with --resume: a resumed run keeps its recorded count)")
     parser.add_argument("--seed", type=int, default=0, help="random seed")
     parser.add_argument("--n-envs", type=int, default=1, help="parallel simulators in subprocesses (default 1)")
     parser.add_argument("--checkpoint-every", type=int, default=50, help="episodes between checkpoints (default 50)")
@@ -41,8 +46,13 @@ def run(args: argparse.Namespace) -> int:
     from autoscoop.training.run import TrainArgs, resume, train  # noqa: PLC0415 - torch is slow to import
 
     if args.resume:
+        if args.episodes is not None:
+            raise ValueError(f"--episodes cannot be given with --resume: a resumed run keeps the episode count "
+                             f"recorded in {args.resume / 'run.json'}")
         run_dir = resume(args.resume, progress=not args.no_progress)
     else:
+        if args.episodes is None:
+            args.episodes = DEFAULT_EPISODES
         if args.episodes < 1 or args.n_envs < 1 or args.checkpoint_every < 1 or args.eval_episodes < 1:
             raise ValueError("--episodes, --n-envs, --checkpoint-every and --eval-episodes must be at least 1")
         if args.eval_every < 0:

@@ -380,9 +380,39 @@ def from_dict(data: Mapping[str, Any]) -> ScoopConfig:
     return ScoopConfig.from_dict(data)
 
 
+def read_yaml_file(path: str | Path, what: str = "config file") -> Any:
+    """The parsed contents of a YAML file (``None`` if empty).
+
+    Raises:
+        ConfigError: naming the file when it is missing, a folder or unreadable, and the line and
+            column of a YAML syntax error.
+    """
+    path = Path(path)
+    if path.is_dir():
+        raise ConfigError(f"{what} {path}: is a folder, not a YAML file")
+    try:
+        text = path.read_text()
+    except FileNotFoundError:
+        raise ConfigError(f"{what} {path}: no such file") from None
+    except (OSError, UnicodeDecodeError) as error:
+        raise ConfigError(f"{what} {path}: cannot be read ({error})") from None
+    try:
+        return yaml.safe_load(text)
+    except yaml.YAMLError as error:
+        mark = getattr(error, "problem_mark", None)
+        where = f" at line {mark.line + 1}, column {mark.column + 1}" if mark is not None else ""
+        problem = getattr(error, "problem", None) or str(error)
+        raise ConfigError(f"{what} {path}: not valid YAML{where}: {problem}") from None
+
+
 def overrides_from_yaml(path: str | Path) -> dict[str, Any]:
-    """The keys a YAML file sets, as dotted keys (nested sections or dotted keys at the top level)."""
-    data = yaml.safe_load(Path(path).read_text()) or {}
+    """The keys a YAML file sets, as dotted keys (nested sections or dotted keys at the top level).
+
+    Raises:
+        ConfigError: the file is missing, a folder or not valid YAML (naming the file and line), or
+            its top level is not a mapping of sections.
+    """
+    data = read_yaml_file(path) or {}
     if not isinstance(data, dict):
         raise ConfigError(f"{path}: expected a mapping of sections, got {type(data).__name__}")
     out: dict[str, Any] = {}
@@ -398,8 +428,16 @@ def overrides_from_yaml(path: str | Path) -> dict[str, Any]:
 
 
 def load_yaml(path: str | Path) -> ScoopConfig:
-    """Read a config from YAML: the defaults with the file's keys applied (validated)."""
-    return ScoopConfig().with_overrides(overrides_from_yaml(path))
+    """Read a config from YAML: the defaults with the file's keys applied (validated).
+
+    Raises:
+        ConfigError: naming the file (and, for a YAML syntax error, the line), then the key.
+    """
+    overrides = overrides_from_yaml(path)
+    try:
+        return ScoopConfig().with_overrides(overrides)
+    except ConfigError as error:
+        raise ConfigError(f"config file {path}: {error}", error.details) from None
 
 
 def save_yaml(config: ScoopConfig, path: str | Path) -> None:

@@ -24,11 +24,10 @@ from pathlib import Path
 from typing import Any, Literal, Self
 
 import numpy as np
-import yaml
 from pydantic import Field, ValidationInfo, field_validator, model_validator
 
 from autoscoop.core import kinematics
-from autoscoop.core.config import ConfigError, ConfigModel, numbers, setting
+from autoscoop.core.config import ConfigError, ConfigModel, numbers, read_yaml_file, setting
 
 
 class ControlSection(ConfigModel):
@@ -289,12 +288,7 @@ def load_robot_config(path: str | Path | None) -> RobotNodeConfig:
     if path is None:
         return RobotNodeConfig()
     path = Path(path)
-    if not path.is_file():
-        raise ConfigError(f"robot config {path}: no such file")
-    try:
-        data = yaml.safe_load(path.read_text()) or {}
-    except yaml.YAMLError as error:
-        raise ConfigError(f"robot config {path}: not valid YAML ({error})") from None
+    data = read_yaml_file(path, "robot config") or {}
     try:
         return robot_config_from_dict(data)
     except ConfigError as error:

@@ -112,6 +112,16 @@ class ScoopEnv(gym.Env):
 
     # ------------------------------------------------------------------ Gymnasium API
     def reset(self, *, seed: int | None = None, options: dict | None = None) -> tuple[np.ndarray, dict]:
+        """Start an episode on a (re)settled pile variant, the loader at its start pose.
+
+        Args:
+            seed: seeds the episode's randomness (Gymnasium's rule: only when given).
+            options: no reset options are supported yet; ``None`` or ``{}``. Any key raises
+                ``ValueError`` naming it, rather than being silently ignored.
+        """
+        if options:
+            raise ValueError(f"ScoopEnv.reset: unknown option(s) {sorted(map(str, options))}; "
+                             "no reset options are supported (pass options=None or {})")
         super().reset(seed=seed)
         self.sim.reset(self.np_random)
         cfg = self.config

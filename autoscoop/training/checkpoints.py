@@ -1,13 +1,19 @@
-"""A run directory's files on disk: checkpoints, the safe actor files, ``run.json``, and what resuming
-and fine-tuning read back (CSV truncation, the vetted initial zip)."""
+"""A run directory's files on disk: checkpoints, the safe actor files, ``run.json``, the lock a writing
+process holds, and what resuming and fine-tuning read back (CSV truncation, the vetted initial zip)."""
 
 from __future__ import annotations
 
 import json
 import os
 import shutil
+import socket
+import time
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
+
+from filelock import FileLock, Timeout
 
 from autoscoop.agents.loading import zip_is_vouched_for
 from autoscoop.agents.policy_files import PolicyFileError, actor_from_sb3, save_actor, sha256_of
@@ -110,6 +116,49 @@ def read_run_json(run_dir: Path) -> dict[str, Any]:
     if not info_path.exists():
         raise ValueError(f"{run_dir} is not a run directory (no run.json)")
     return json.loads(info_path.read_text())
+
+
+LOCK_FILE = ".lock"
+"""the lock a process writing a run directory holds (``filelock``; the OS frees it if the process dies)."""
+HOLDER_FILE = "lock.json"
+"""who holds :data:`LOCK_FILE`: PID, host and start time, for the message a second process gets."""
+
+
+def _holder_text(run_dir: Path) -> str:
+    try:
+        holder = json.loads((run_dir / HOLDER_FILE).read_text())
+        return f"pid {holder['pid']} on {holder['host']}, since {holder['started']}"
+    except (OSError, ValueError, KeyError, TypeError):
+        return f"holder unknown: {run_dir / HOLDER_FILE} is missing or unreadable"
+
+
+@contextmanager
+def lock_run_dir(run_dir: Path) -> Iterator[None]:
+    """Hold ``run_dir/.lock`` while the block writes the run directory (which must exist), released on any exit.
+
+    The lock is not waited for: a run directory has one writer. The holder's PID, host and start time
+    are written to ``run_dir/lock.json`` while it is held.
+
+    Raises:
+        ValueError: another process holds the lock (the message names the directory and that process).
+    """
+    run_dir = Path(run_dir)
+    lock = FileLock(run_dir / LOCK_FILE, timeout=0)
+    try:
+        lock.acquire()
+    except Timeout:
+        raise ValueError(f"{run_dir} is being written by another autoscoop process ({_holder_text(run_dir)}); "
+                         f"wait for it to end, or stop it, before training into this directory") from None
+    holder = run_dir / HOLDER_FILE
+    try:
+        tmp = run_dir / (HOLDER_FILE + ".tmp")
+        tmp.write_text(json.dumps({"pid": os.getpid(), "host": socket.gethostname(),
+                                   "started": time.strftime("%Y-%m-%dT%H:%M:%S%z")}) + "\n")
+        os.replace(tmp, holder)
+        yield
+    finally:
+        holder.unlink(missing_ok=True)
+        lock.release()
 
 
 def init_model_zip(run_dir: Path, algo: str, trust: bool) -> Path:

@@ -15,10 +15,12 @@ A run directory holds everything needed to repeat and to use the run:
 | last.safetensors, last.json | the actor at the end of training |
 | evaluations.csv | each periodic evaluation: episode, delivered fill, fill factor, success, cycle time |
 | learning_curve.png | reward, fill factor and cycle time against episode (the paper's Fig. 8) |
+| .lock, lock.json | the lock the writing process holds, and who that is (PID, host, start time) while it runs |
 
 This module builds the run and drives it; :mod:`autoscoop.training.callbacks` writes the CSVs, the
 evaluated actors and ``policy.*`` as training goes, :mod:`autoscoop.training.checkpoints` the checkpoints,
-``run.json`` and ``last.*``.
+``run.json``, ``last.*`` and the lock: one process at a time writes a run directory (``train`` and
+``resume`` hold its lock for the whole run; a second one is refused at once).
 """
 
 from __future__ import annotations
@@ -46,6 +48,7 @@ from autoscoop.training.checkpoints import (
     init_model_zip,
     load_checkpoint,
     load_init_weights,
+    lock_run_dir,
     read_checkpoint_state,
     read_run_json,
     save_safe_actor,
@@ -106,9 +109,17 @@ def train(args: TrainArgs) -> Path:
     config = ScoopConfig().with_overrides({**(spec.get("env") or {}), **args.overrides})
     init_zip = init_model_zip(args.init_from, args.algo, args.trust) if args.init_from else None
     run_dir = Path(args.out) if args.out else _default_run_dir(args)
-    if (run_dir / "run.json").exists():
-        raise ValueError(f"{run_dir} already holds a run; use --resume {run_dir} to continue it, or another --out")
     run_dir.mkdir(parents=True, exist_ok=True)
+    with lock_run_dir(run_dir):  # first: a run being written is reported as such, with its process
+        if (run_dir / "run.json").exists():
+            raise ValueError(f"{run_dir} already holds a run; use --resume {run_dir} to continue it, "
+                             "or another --out")
+        return _start(args, run_dir, config, spec, demos, init_zip)
+
+
+def _start(args: TrainArgs, run_dir: Path, config: ScoopConfig, spec: dict[str, Any], demos: int,
+           init_zip: Path | None) -> Path:
+    """Write a new run's files and train it (under the run directory's lock)."""
     save_yaml(config, run_dir / "config.yaml")
     (run_dir / "hyperparams.yaml").write_text(yaml.safe_dump(spec, sort_keys=False))
     info = {"algo": args.algo, "seed": args.seed, "episodes": args.episodes, "n_envs": args.n_envs,
@@ -125,9 +136,21 @@ def train(args: TrainArgs) -> Path:
 def resume(run_dir: Path, progress: bool = True) -> Path:
     """Continue an interrupted run from its last checkpoint (episodes after it are redone)."""
     run_dir = Path(run_dir)
+    read_run_json(run_dir)  # a run directory, before a lock file is put in it
+    with lock_run_dir(run_dir):
+        return _continue(run_dir, progress)
+
+
+def _continue(run_dir: Path, progress: bool) -> Path:
+    """:func:`resume` under the run directory's lock (``run.json`` is read again: the last holder may have
+    finished the run)."""
     info = read_run_json(run_dir)
     if info.get("status") == "finished":
         raise ValueError(f"{run_dir} already finished its {info['episodes']} episodes")
+    missing = [str(run_dir / name) for name in ("config.yaml", "hyperparams.yaml") if not (run_dir / name).is_file()]
+    if missing:
+        raise ValueError(f"cannot resume {run_dir}: missing {' and '.join(missing)} (a run directory holds "
+                         "run.json, config.yaml and hyperparams.yaml)")
     spec = yaml.safe_load((run_dir / "hyperparams.yaml").read_text())
     config = from_dict(yaml.safe_load((run_dir / "config.yaml").read_text()))
     checkpoint = run_dir / "checkpoint"
