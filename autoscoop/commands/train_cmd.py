@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from autoscoop.commands import add_config_args
+from autoscoop.commands import add_config_args, seed_int
 from autoscoop.core.config import overrides_from_yaml, parse_set_args
 
 DEFAULT_EPISODES = 800
@@ -19,7 +19,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument("--episodes", type=int, default=None,
                         help=f"training episodes (default {DEFAULT_EPISODES}, as in the paper; "
                              "not with --resume: a resumed run keeps its recorded count)")
-    parser.add_argument("--seed", type=int, default=0, help="random seed")
+    parser.add_argument("--seed", type=seed_int, default=0, help="random seed (0 or more)")
     parser.add_argument("--n-envs", type=int, default=1, help="parallel simulators in subprocesses (default 1)")
     parser.add_argument("--checkpoint-every", type=int, default=50, help="episodes between checkpoints (default 50)")
     parser.add_argument("--eval-every", type=int, default=50,
