@@ -80,3 +80,25 @@ def test_a_record_names_the_pile_the_episode_had_in_a_mix():
         angles.add(angle)
     assert angles == {25.0, 40.0}
     env.close()
+
+
+def test_a_broken_record_is_a_clear_error_naming_the_file(tmp_path) -> None:
+    """Truncated, garbage, pickled or missing records: a ValueError naming the file, never a raw traceback."""
+    import zipfile
+
+    import numpy as np
+    import pytest
+
+    from autoscoop.envs.records import EpisodeRecord, load_record
+
+    good = EpisodeRecord(meta={"seed": 0}).save(tmp_path / "good.npz")
+    truncated = tmp_path / "truncated.npz"
+    truncated.write_bytes(good.read_bytes()[: len(good.read_bytes()) // 2])
+    garbage = tmp_path / "garbage.npz"
+    garbage.write_bytes(b"not a zip at all" * 10)
+    pickled = tmp_path / "pickled.npz"
+    np.savez(pickled, meta=np.array([{"a": 1}], dtype=object))
+    for path in (truncated, garbage, pickled, tmp_path / "missing.npz"):
+        with pytest.raises(ValueError, match=path.name) as caught:
+            load_record(path)
+        assert not isinstance(caught.value, zipfile.BadZipFile)

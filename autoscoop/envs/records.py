@@ -10,6 +10,7 @@ the same way.
 from __future__ import annotations
 
 import json
+import zipfile
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -99,12 +100,20 @@ class EpisodeRecord:
 
 def load_record(path: str | Path) -> EpisodeRecord:
     """Read a record written by :meth:`EpisodeRecord.save` (no pickle is ever loaded)."""
-    with np.load(Path(path), allow_pickle=False) as data:
-        missing = set(STEP_FIELDS) - set(data.files)
-        if missing:
-            raise ValueError(f"{path}: not an autoscoop episode record (missing {sorted(missing)})")
-        record = EpisodeRecord(meta=json.loads(str(data["meta"])))
-        record.steps = {name: data[name].tolist() for name in STEP_FIELDS}
+    path = Path(path)
+    try:
+        with np.load(path, allow_pickle=False) as data:
+            missing = set(STEP_FIELDS) - set(data.files)
+            if missing:
+                raise ValueError(f"{path}: not an autoscoop episode record (missing {sorted(missing)})")
+            record = EpisodeRecord(meta=json.loads(str(data["meta"])))
+            record.steps = {name: data[name].tolist() for name in STEP_FIELDS}
+    except ValueError as error:  # numpy's "pickled data" refusal, bad JSON metadata, our own message
+        raise ValueError(str(error) if str(path) in str(error) else
+                         f"{path}: not a readable autoscoop episode record ({error})") from error
+    except (OSError, EOFError, KeyError, zipfile.BadZipFile) as error:  # missing, truncated, garbage
+        raise ValueError(f"{path}: not a readable autoscoop episode record "
+                         f"({type(error).__name__}: {error})") from error
     return record
 
 
