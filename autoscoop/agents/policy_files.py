@@ -60,12 +60,20 @@ def load_actor(path: str | Path) -> tuple[PaperActor, dict[str, Any]]:
         meta = json.loads(sidecar_path.read_text())
     except json.JSONDecodeError as error:
         raise PolicyFileError(f"{sidecar_path}: not valid JSON ({error})") from error
+    if not isinstance(meta, dict):
+        raise PolicyFileError(f"{sidecar_path}: expected a JSON object with format, layers and sha256, "
+                              f"got a {type(meta).__name__}")
     if meta.get("format") != FORMAT:
         raise PolicyFileError(f"{sidecar_path}: format {meta.get('format')!r}, expected {FORMAT!r}")
     actual = sha256_of(path)
     if actual != meta.get("sha256"):
         raise PolicyFileError(f"{path}: SHA-256 {actual} does not match the recorded {meta.get('sha256')}")
-    actor = PaperActor(layers=meta["layers"])
+    layers = meta.get("layers")
+    if not (isinstance(layers, list) and layers and all(isinstance(n, int) and not isinstance(n, bool) and n > 0
+                                                        for n in layers)):
+        raise PolicyFileError(f"{sidecar_path}: 'layers' must be a non-empty list of positive whole numbers "
+                              f"(hidden layer widths, e.g. [100, 80, 60]); got {layers!r}")
+    actor = PaperActor(layers=layers)
     try:
         actor.load_state_dict(load_file(str(path)))
     except (RuntimeError, KeyError) as error:
