@@ -37,9 +37,6 @@ def build_parser() -> argparse.ArgumentParser:
 def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
-    seed = getattr(args, "seed", None)
-    if isinstance(seed, int) and seed < 0:  # a command whose --seed does not yet take commands.seed_int
-        parser.error(f"argument --seed: must be 0 or more (allowed range: [0, inf)); got {seed}")
     if not getattr(args, "func", None):
         parser.print_help()
         return 2
