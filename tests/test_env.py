@@ -7,6 +7,7 @@ from gymnasium.utils.env_checker import check_env
 
 import autoscoop  # noqa: F401
 from autoscoop.core.state import STATE_NAMES
+from autoscoop.envs.outcome import EpisodeOutcome
 from autoscoop.envs.scoop import ScoopEnv
 from autoscoop.sim.scene import WHEEL_RADIUS_M, WHEELS
 
@@ -78,12 +79,24 @@ def test_instability_ends_the_episode_with_a_physics_error():
     assert np.all(np.isfinite(obs)) and reward == 0.0
 
 
-def test_success_pays_the_mass_bonus_and_reports_cycle_time():
-    env = ScoopEnv(**SMALL, **{"reward.terminal_dx_m": -0.1, "reward.terminal_z_m": 0.03, "reward.epsilon_m": 0.1})
+def test_reaching_pays_the_mass_bonus_and_reports_cycle_time():
+    at_start = {"reward.terminal_dx_m": -0.1, "reward.terminal_z_m": 0.03, "reward.epsilon_m": 0.1}
+    env = ScoopEnv(**SMALL, **at_start, **{"scoop.min_fill": 0.0})
     env.reset(seed=0)
     _, reward, terminated, _, info = env.step(np.zeros(3))
-    assert terminated and info["success"] and info["cycle_time_s"] == pytest.approx(0.25)
+    assert terminated and info["reached"] and info["success"] and info["cycle_time_s"] == pytest.approx(0.25)
     assert info["reward_mass"] == pytest.approx(env.config.reward.c_w * info["fill_factor"])
+
+
+def test_an_empty_lift_reaches_but_is_no_success():
+    """Success is a scoop: the terminal point reached with at least scoop.min_fill of mass or volume."""
+    env = ScoopEnv(**SMALL, **{"reward.terminal_dx_m": -0.1, "reward.terminal_z_m": 0.03, "reward.epsilon_m": 0.1})
+    env.reset(seed=0)
+    _, _, terminated, _, info = env.step(np.zeros(3))
+    assert terminated and info["reached"] and info["fill_factor"] == 0.0 and info["volumetric_fill"] == 0.0
+    assert not info["success"]
+    outcome = EpisodeOutcome.from_info(info, seed=0, steps=1, episode_return=0.0)
+    assert outcome.reached and not outcome.success and outcome.cycle_time_s is None
 
 
 def test_terminal_distance_is_measured_in_the_arms_plane():

@@ -10,7 +10,6 @@ The controller is not a substitute for the robot's hardware emergency stop.
 from __future__ import annotations
 
 import argparse
-import math
 from pathlib import Path
 
 from autoscoop.commands import add_config_args, config_from_args, seed_int, write_json
@@ -42,11 +41,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     sim.add_argument("--episodes", type=int, default=0, help="episodes to run, then exit (default 0: until stopped)")
     sim.add_argument("--seed", type=seed_int, default=0, help="seed of the first episode (as in autoscoop eval)")
     sim.add_argument("--json", type=Path, help="write the summary (as autoscoop eval does) to this JSON file")
-    sim.add_argument("--delay-s", type=float, default=0.0, help="delay of every sensor message, s (default 0)")
-    sim.add_argument("--joint-noise-rad", type=float, default=0.0, help="noise (std) on the joint angles, rad")
-    sim.add_argument("--speed-noise-mps", type=float, default=0.0, help="noise (std) on the odometry speed, m/s")
-    sim.add_argument("--range-noise-m", type=float, default=0.0, help="noise (std) on the range to the pile, m")
-    sim.add_argument("--torque-noise-nm", type=float, default=0.0, help="noise (std) on each joint torque (bucket and lift), N*m")
+    for flag, key, unit, what in LINK_OPTIONS:
+        sim.add_argument(flag, type=float, default=None, metavar=unit.upper().replace("/", "_").replace("*", "_"),
+                         help=f"{what}, {unit}: the config key {key} (same as --set {key}=...; default 0)")
     sim.add_argument("--robot-config", type=Path,
                      help="the robot's YAML: topic and joint names, and potentiometer calibration (raw readings)")
     sim.add_argument("--label", help="policy name for the summary (default: the controller's ~policy parameter)")
@@ -55,6 +52,16 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     sim.add_argument("remap", nargs="*", metavar="NAME:=NEW", help="ROS remappings")
     sim.set_defaults(func=run_sim)
     parser.set_defaults(func=lambda args: parser.print_help() or 2)
+
+
+LINK_OPTIONS = (
+    ("--delay-s", "sensor.delay_s", "s", "delay of every sensor message"),
+    ("--joint-noise-rad", "sensor.joint_noise_rad", "rad", "noise (std) on the joint angles"),
+    ("--speed-noise-mps", "sensor.speed_noise_mps", "m/s", "noise (std) on the odometry speed"),
+    ("--range-noise-m", "sensor.range_noise_m", "m", "noise (std) on the range to the pile"),
+    ("--torque-noise-nm", "sensor.torque_noise_nm", "N*m", "noise (std) on each joint torque (bucket and lift)"),
+)
+"""``ros sim``'s link options: (flag, the config key it sets, unit, meaning)."""
 
 
 _CONTROLLER_DOC = """Run a policy on the robot through ROS 1.
@@ -122,22 +129,22 @@ def run_sim(args: argparse.Namespace) -> int:
     _check_remaps(args.remap)
     if args.episodes < 0:
         raise SystemExit(f"--episodes must be 0 (until stopped) or more, got {args.episodes}")
-    if not (math.isfinite(args.delay_s) and 0.0 <= args.delay_s <= 5.0):
-        raise SystemExit(f"--delay-s must be in [0, 5] s, got {args.delay_s}")
     from autoscoop.deploy.robot_config import load_robot_config  # noqa: PLC0415
     from autoscoop.deploy.ros1 import RosUnavailable  # noqa: PLC0415
-    from autoscoop.deploy.sim_bridge import SensorNoise, SimBridge  # noqa: PLC0415
+    from autoscoop.deploy.sim_bridge import SimBridge  # noqa: PLC0415
     from autoscoop.evaluation.evaluate import format_table, summarize  # noqa: PLC0415
 
     config = config_from_args(args)
-    noise = SensorNoise(joint_rad=args.joint_noise_rad, speed_mps=args.speed_noise_mps, range_m=args.range_noise_m,
-                        torque_nm=args.torque_noise_nm)
-    bridge = SimBridge(config, noise, load_robot_config(args.robot_config), seed=args.seed)
+    link = {key: getattr(args, flag.lstrip("-").replace("-", "_")) for flag, key, _, _ in LINK_OPTIONS}
+    try:  # the link options are the environment's sensor keys: one range check, errors naming the key
+        config = config.with_overrides({key: value for key, value in link.items() if value is not None})
+    except ConfigError as error:
+        raise ConfigError(f"ros sim: {error}") from None
+    bridge = SimBridge(config, robot=load_robot_config(args.robot_config), seed=args.seed)
     try:
         from autoscoop.deploy.ros1.sim_node import SimNode  # noqa: PLC0415
 
-        results, stats = SimNode(bridge, delay_s=args.delay_s).run(args.episodes, seed=args.seed,
-                                                                    wait_for_controller_s=args.wait_s)
+        results, stats = SimNode(bridge).run(args.episodes, seed=args.seed, wait_for_controller_s=args.wait_s)
         label = args.label or stats.controller_policy or "ros controller"
     except RosUnavailable as error:
         print(f"autoscoop ros sim: error: {error}")
@@ -151,8 +158,8 @@ def run_sim(args: argparse.Namespace) -> int:
         print("no episode finished")
         return 1
     summary = summarize(results, config, label)
-    summary["ros"] = {"sensor_period_s": bridge.sensor_period_s, "delay_s": args.delay_s,
-                      "noise": vars(noise), **stats.as_dict()}
+    summary["ros"] = {"sensor_period_s": bridge.sensor_period_s, "delay_s": config.sensor.delay_s,
+                      "noise": vars(bridge.noise), **stats.as_dict()}
     print(format_table(summary))
     print(f"real-time factor {summary['ros']['real_time_factor']:.2f}, late steps {stats.late_steps}")
     if args.json:

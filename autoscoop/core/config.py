@@ -334,6 +334,143 @@ class EnvConfig(ConfigModel):
         return self
 
 
+class SensorConfig(ConfigModel):
+    """What the policy's readings go through on their way from the sensors: transport delay and noise.
+
+    The same link as ``autoscoop ros sim``'s options (``--delay-s``, ``--joint-noise-rad``, ...): the
+    environment applies it to the state (:mod:`autoscoop.core.sensing`), the ROS simulator to the
+    messages it publishes. The reward and the metrics always use the true values.
+    """
+
+    section = "sensor"
+    delay_s: float = setting(0.0, "s", "every reading reaches the policy this late (honoured to the physics "
+                             "step: rounded to a whole number of env.timestep_s)", 0.0, 2.0)
+    joint_noise_rad: float = setting(0.0, "rad", "std of the noise on each joint angle reading (lift, tilt)", 0.0, 0.1)
+    speed_noise_mps: float = setting(0.0, "m/s", "std of the noise on the odometry speed", 0.0, 0.1)
+    range_noise_m: float = setting(0.0, "m", "std of the noise on the range to the pile (kept >= 0)", 0.0, 0.1)
+    torque_noise_nm: float = setting(0.0, "N*m", "std of the noise on each joint torque sample (one per physics "
+                                     "step; the load cell averages them over the control period)", 0.0, 10.0)
+
+
+class ScoopTaskConfig(ConfigModel):
+    """When an episode counts as a scoop, and when as an overload."""
+
+    section = "scoop"
+    min_fill: float = setting(0.5, "-", "success: the terminal point reached with the mass fill factor or the "
+                              "volumetric fill, whichever is higher, at least this", 0.0, 2.0)
+    overload_fill: float = setting(1.05, "-", "an episode ending with a fill factor above this is an overload", 0.5, 3.0)
+
+
+def _range(low: float, high: float, unit: str, doc: str) -> Any:
+    return setting((), unit, doc + "; [low, high] drawn uniformly per episode (equal ends: a fixed value; "
+                   "empty: the preset's)", low, high, max_length=2)
+
+
+def _probability(doc: str) -> Any:
+    return setting((), "-", doc + "; [p] (empty: the preset's)", 0.0, 1.0, max_length=1)
+
+
+ROBOT_PRESET: dict[str, tuple[float, ...]] = {
+    "pile_angle_deg": (24.0, 42.0),
+    "particle_mass_kg": (0.18, 0.42),
+    "particle_friction": (0.55, 1.35),
+    "particle_radius_m": (0.033, 0.035),
+    "n_particles": (64.0, 80.0),
+    "start_gap_m": (0.05, 0.32),
+    "ground_friction": (0.6, 1.2),
+    "bucket_friction": (0.25, 0.6),
+    "torque_limit_scale": (0.85, 1.15),
+    "actuator_speed_scale": (0.85, 1.15),
+    "torque_source_probability": (0.5,),
+    "torque_offset_nm": (-0.3, 0.3),
+    "load_cell_noise_nm": (0.1, 0.4),
+    "sensor_delay_s": (0.0, 0.07),
+    "joint_noise_rad": (0.0, 0.003),
+    "speed_noise_mps": (0.0, 0.003),
+    "range_noise_m": (0.0, 0.005),
+    "torque_noise_nm": (0.0, 0.3),
+    "prescooped_probability": (0.2,),
+    "prescoop_depth_m": (0.03, 0.08),
+}
+"""The ``robot`` preset: the ranges the shipped policy is trained on (documented in docs/randomize.md)."""
+
+
+class RandomizeConfig(ConfigModel):
+    """A randomised world: ranges drawn once per episode (domain randomisation).
+
+    ``preset`` names a set of ranges: ``none`` (the default: nothing is drawn, the paper's world to
+    the bit) or ``robot`` (:data:`ROBOT_PRESET`). A range given here replaces the preset's; a
+    number is taken as a fixed value (both ends equal). Draws happen in
+    :mod:`autoscoop.sim.world`; each episode's draws are in ``info["world"]`` and its record.
+    """
+
+    section = "randomize"
+    preset: Literal["none", "robot"] = setting("none", "-", "a named set of ranges: none (the paper's world) "
+                                               "or robot (the ranges the shipped policy is trained on)")
+    pile_angle_deg: PileAngles = _range(*PILE_ANGLE_RANGE_DEG, "deg", "pile face slope")
+    particle_mass_kg: numbers(0.01, 5.0) = _range(0.01, 5.0, "kg", "mass of one particle (material density)")
+    particle_friction: numbers(0.0, 2.0) = _range(0.0, 2.0, "-", "sliding friction of particle contacts")
+    particle_radius_m: numbers(0.02, 0.05) = _range(0.02, 0.05, "m", "particle radius (a bank of scenes: "
+                                                  "drawn to the millimetre)")
+    n_particles: numbers(8, 200) = _range(8, 200, "-", "number of particles (drawn to a whole row of pile.across)")
+    start_gap_m: numbers(0.0, 0.6) = _range(0.0, 0.6, "m", "start gap between tip and pile toe")
+    ground_friction: numbers(0.05, 2.0) = _range(0.05, 2.0, "-", "wheel-ground friction")
+    bucket_friction: numbers(0.05, 2.0) = _range(0.05, 2.0, "-", "bucket-particle friction")
+    torque_limit_scale: numbers(0.2, 5.0) = _range(0.2, 5.0, "-", "factor on the lift, tilt and wheel torque limits")
+    actuator_speed_scale: numbers(0.2, 5.0) = _range(0.2, 5.0, "-", "factor on the lift and tilt actuator speeds")
+    torque_source_probability: numbers(0.0, 1.0) = _probability(
+        "probability that an episode's state mass is the torque estimate (else the counted mass)")
+    torque_offset_nm: numbers(-10.0, 10.0) = _range(-10.0, 10.0, "N*m", "constant offset of each joint torque reading "
+                                                 "(a miscalibrated load cell), drawn for lift and tilt")
+    load_cell_noise_nm: numbers(0.0, 20.0) = _range(0.0, 20.0, "N*m", "env.load_cell_noise_nm")
+    sensor_delay_s: numbers(0.0, 2.0) = _range(0.0, 2.0, "s", "sensor.delay_s")
+    joint_noise_rad: numbers(0.0, 0.1) = _range(0.0, 0.1, "rad", "sensor.joint_noise_rad")
+    speed_noise_mps: numbers(0.0, 0.1) = _range(0.0, 0.1, "m/s", "sensor.speed_noise_mps")
+    range_noise_m: numbers(0.0, 0.1) = _range(0.0, 0.1, "m", "sensor.range_noise_m")
+    torque_noise_nm: numbers(0.0, 10.0) = _range(0.0, 10.0, "N*m", "sensor.torque_noise_nm")
+    prescooped_probability: numbers(0.0, 1.0) = _probability(
+        "probability that the pile was scooped once before (its face cut back as a scoop leaves it)")
+    prescoop_depth_m: numbers(0.0, 0.3) = _range(0.0, 0.3, "m", "how far behind the face the earlier scoop cut")
+
+    @model_validator(mode="before")
+    @classmethod
+    def _numbers_are_fixed_values(cls, data: Any) -> Any:
+        if not isinstance(data, Mapping):
+            return data
+        out = dict(data)
+        for key, value in data.items():
+            field = cls.model_fields.get(str(key))
+            if field is not None and key != "preset" and isinstance(value, (int, float)) and not isinstance(value, bool):
+                out[key] = [value] if _max_length(field) == 1 else [value, value]
+        return out
+
+    @model_validator(mode="after")
+    def _ranges_ordered(self) -> Self:
+        for name, field in type(self).model_fields.items():
+            value = getattr(self, name)
+            if name == "preset" or not value:
+                continue
+            if _max_length(field) == 2 and (len(value) != 2 or value[0] > value[1]):
+                raise ConfigError(f"randomize.{name} = {list(value)} must be empty or [low, high] with low <= high")
+        return self
+
+    def ranges(self) -> dict[str, tuple[float, ...]]:
+        """The ranges in force: the preset's, replaced by those given here; quantities not drawn are left out."""
+        out = dict(ROBOT_PRESET) if self.preset == "robot" else {}
+        out.update({name: tuple(getattr(self, name)) for name in type(self).model_fields
+                    if name != "preset" and getattr(self, name)})
+        return out
+
+    @property
+    def active(self) -> bool:
+        """Whether anything is drawn per episode."""
+        return bool(self.ranges())
+
+
+def _max_length(field: FieldInfo) -> int | None:
+    return next((m.max_length for m in field.metadata if getattr(m, "max_length", None) is not None), None)
+
+
 class ScoopConfig(ConfigModel):
     """Everything that defines a scooping scene and task."""
 
@@ -341,6 +478,9 @@ class ScoopConfig(ConfigModel):
     pile: PileConfig = Field(default_factory=PileConfig, description="the pile")
     reward: RewardConfig = Field(default_factory=RewardConfig, description="the reward")
     env: EnvConfig = Field(default_factory=EnvConfig, description="the episode and physics")
+    sensor: SensorConfig = Field(default_factory=SensorConfig, description="sensor delay and noise")
+    scoop: ScoopTaskConfig = Field(default_factory=ScoopTaskConfig, description="what counts as a scoop")
+    randomize: RandomizeConfig = Field(default_factory=RandomizeConfig, description="the randomised world")
 
     @property
     def max_episode_steps(self) -> int:

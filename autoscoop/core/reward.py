@@ -2,7 +2,8 @@
 
     penetrate  <=>  min_i |tip - particle_i| <= Delta                         (eq. 7)
     P_t = 1 - tanh^2(|d_end| / s)  if penetrating, else  1 - tanh^2(|d_t| / s)   (eq. 5)
-    r_t = P_t + c_w * w_t      if |d_end| <= epsilon, else  P_t              (eq. 6)
+    r_t = P_t + c_w * min(w_t, 1)  if |d_end| <= epsilon, else  P_t          (eq. 6; mass above the rated
+                                                                            load earns no more)
 
 d_t: tip to the pile (m); d_end: tip to the terminal point (m); w_t: mass in bucket / rated load;
 s: ``reward.distance_scale_m``, 1 m in the paper (our addition: over a workspace of half a metre,
@@ -29,7 +30,7 @@ def scoop_reward(tip_to_pile_m: float, tip_to_terminal_m: float, penetrating: bo
         tip_to_pile_m: d_t, metres.
         tip_to_terminal_m: d_end, metres.
         penetrating: eq. 7.
-        w: normalised mass in the bucket.
+        w: normalised mass in the bucket (paid up to 1: the rated load).
         config: c_w, epsilon, distance scale.
 
     Returns:
@@ -37,5 +38,5 @@ def scoop_reward(tip_to_pile_m: float, tip_to_terminal_m: float, penetrating: bo
     """
     distance = tip_to_terminal_m if penetrating else tip_to_pile_m
     progress = 1.0 - math.tanh(distance / config.distance_scale_m) ** 2
-    mass = config.c_w * w if tip_to_terminal_m <= config.epsilon_m else 0.0
+    mass = config.c_w * min(w, 1.0) if tip_to_terminal_m <= config.epsilon_m else 0.0  # no more for an overload
     return progress + mass, {"reward_progress": progress, "reward_mass": mass}

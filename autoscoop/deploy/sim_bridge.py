@@ -21,8 +21,9 @@ from typing import Any
 
 import numpy as np
 
-from autoscoop.core.config import ScoopConfig
+from autoscoop.core.config import ScoopConfig, SensorConfig
 from autoscoop.core.payload import pitch_from_quaternion
+from autoscoop.core.sensing import RawReadings, SensorNoise, add_noise
 from autoscoop.core.state import CommandLimits, advance_targets, servo_rate
 from autoscoop.deploy.robot_config import RobotNodeConfig
 from autoscoop.envs.outcome import EpisodeOutcome
@@ -30,29 +31,6 @@ from autoscoop.envs.scoop import make_scoop_env
 
 MIN_SENSOR_PERIOD_S = 0.02
 """Sensors are published at most this often: every physics step, or every few when steps are shorter."""
-
-
-@dataclass(frozen=True)
-class SensorNoise:
-    """Standard deviations of the Gaussian noise on each published reading.
-
-    Attributes:
-        joint_rad: on each joint angle, rad (before conversion to a raw reading).
-        speed_mps: on the odometry speed, m/s.
-        range_m: on the range to the pile, m (the result is kept >= 0).
-        torque_nm: on each joint torque (bucket and lift), N*m.
-    """
-
-    joint_rad: float = 0.0
-    speed_mps: float = 0.0
-    range_m: float = 0.0
-    torque_nm: float = 0.0
-
-    def __post_init__(self) -> None:
-        for name in ("joint_rad", "speed_mps", "range_m", "torque_nm"):
-            value = getattr(self, name)
-            if not (math.isfinite(value) and 0.0 <= value <= 10.0):
-                raise ValueError(f"noise {name} = {value} must be a finite number in [0, 10]")
 
 
 @dataclass(frozen=True)
@@ -88,8 +66,9 @@ class SimBridge:
     """The scoop simulator driven by position and speed commands, read through the robot's sensors.
 
     Args:
-        config: the scene (pile, robot limits, episode length).
-        noise: sensor noise.
+        config: the scene (pile, robot limits, episode length) and the sensor link (``sensor.*``: its
+            noise here, its delay in the ROS node, :class:`~autoscoop.deploy.ros1.sim_node.SimNode`).
+        noise: sensor noise; default: the config's ``sensor`` section (the environment's link).
         robot: the robot's node config: joint names and potentiometer calibration of the readings
             (default: joints ``lift``/``tilt`` in radians).
         seed: seed of the noise.
@@ -101,9 +80,11 @@ class SimBridge:
         self.task_config = config
         timestep = config.env.timestep_s
         self.sensor_period_s = timestep * max(1, math.ceil(MIN_SENSOR_PERIOD_S / timestep - 1e-9))
-        self.config = config.with_overrides({"env.control_period_s": self.sensor_period_s})
+        # the bridge applies the link itself, to the messages: the environment inside reads exact values
+        self.config = config.with_overrides({"env.control_period_s": self.sensor_period_s}).replace(
+            sensor=SensorConfig())
         self.env = make_scoop_env(self.config)
-        self.noise = noise or SensorNoise()
+        self.noise = noise or SensorNoise.from_config(config.sensor)
         self.robot = robot or RobotNodeConfig()
         self.rng = np.random.default_rng(seed)
         self.limits = CommandLimits.for_robot(config.robot)
@@ -179,18 +160,17 @@ class SimBridge:
 
     def readings(self) -> SensorReadings:
         """The sensors' view of the scene now, with noise."""
-        sim, info, noise, rng = self.env.unwrapped.sim, self._info, self.noise, self.rng
+        sim, info = self.env.unwrapped.sim, self._info
+        true = RawReadings(lift_rad=sim.lift_rad, tilt_rad=sim.tilt_rad, speed_mps=sim.odometry_speed_mps,
+                           range_m=float(info.get("tip_to_pile_m", math.nan)), tilt_torque_nm=sim.tilt_torque_nm,
+                           lift_torque_nm=sim.lift_torque_nm)
+        sensed = add_noise(true, self.noise, self.rng)  # one sample per sensor period
         positions = []
-        for joint, angle in (("lift", sim.lift_rad), ("tilt", sim.tilt_rad)):
-            angle = angle + (rng.normal(0.0, noise.joint_rad) if noise.joint_rad else 0.0)
+        for joint, angle in (("lift", sensed.lift_rad), ("tilt", sensed.tilt_rad)):
             pot = self.robot.potentiometer(joint)
             positions.append(pot.to_raw(angle) if pot is not None else angle)
-        speed = sim.odometry_speed_mps + (rng.normal(0.0, noise.speed_mps) if noise.speed_mps else 0.0)
-        distance = float(info.get("tip_to_pile_m", math.nan))
-        if noise.range_m and math.isfinite(distance):
-            distance = max(0.0, distance + rng.normal(0.0, noise.range_m))
-        torque = sim.tilt_torque_nm + (rng.normal(0.0, noise.torque_nm) if noise.torque_nm else 0.0)
-        lift_torque = sim.lift_torque_nm + (rng.normal(0.0, noise.torque_nm) if noise.torque_nm else 0.0)
+        speed, distance = sensed.speed_mps, sensed.range_m
+        torque, lift_torque = sensed.tilt_torque_nm, sensed.lift_torque_nm
         position, rotation = sim.chassis_pose
         quat = np.empty(4)
         import mujoco  # noqa: PLC0415 - already loaded by the simulator

@@ -4,16 +4,19 @@ Evaluation, the episode recorder, the benchmarks, the scripted demonstrations, t
 side (the simulator node and the controller's records) all build it here, from the environment's
 ``info`` (:meth:`EpisodeOutcome.from_info`), so that a number means the same everywhere.
 
-Definitions: fill factor = mass in the bucket at the end / rated load; cycle time = seconds from the
-start to success (``None`` when the episode did not succeed); success = the tip reached the terminal
-point in time; spillage = particles that were in the bucket and are not at the end.
+Definitions: fill factor = mass in the bucket at the end / rated load; volumetric fill = the
+particles' solid volume / the bucket's heaped capacity; reached = the tip reached the terminal point
+in time; success = reached loaded: with the fill factor or the volumetric fill, whichever is
+higher, at least ``scoop.min_fill``; overload = fill factor above ``scoop.overload_fill``; cycle time
+= seconds from the start to success (``None`` when the episode did not succeed); spillage =
+particles that were in the bucket and are not at the end.
 """
 
 from __future__ import annotations
 
 import math
 from collections.abc import Mapping
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, field
 from typing import Any
 
 
@@ -26,12 +29,17 @@ class EpisodeOutcome:
         fill_factor: mass in the bucket at the end / rated load.
         mass_kg: mass in the bucket at the end, kg.
         particles: particles in the bucket at the end.
-        success: the tip reached the terminal point within the time limit.
+        success: the tip reached the terminal point within the time limit, loaded (see above).
         cycle_time_s: seconds from the start to success; ``None`` when the episode did not succeed.
         spilled: particles that were in the bucket and are not at the end.
         physics_error: the simulation diverged (the episode ended there).
         steps: control steps taken.
         episode_return: sum of the rewards.
+        reached: the tip reached the terminal point within the time limit, loaded or not.
+        volumetric_fill: the particles' solid volume at the end / the bucket's capacity (NaN where unknown:
+            a record from the robot, or one written before this was measured).
+        overloaded: the fill factor ended above ``scoop.overload_fill``.
+        world: a randomised world's draws for this episode (``info["world"]``; empty: the config's world).
     """
 
     seed: int
@@ -44,6 +52,10 @@ class EpisodeOutcome:
     physics_error: bool
     steps: int
     episode_return: float
+    reached: bool = False
+    volumetric_fill: float = math.nan
+    overloaded: bool = False
+    world: dict[str, Any] = field(default_factory=dict)
 
     @classmethod
     def from_info(cls, info: Mapping[str, Any], *, seed: int, steps: int, episode_return: float) -> EpisodeOutcome:
@@ -55,7 +67,10 @@ class EpisodeOutcome:
                    mass_kg=float(info.get("mass_in_bucket_kg", 0.0)),
                    particles=int(info.get("particles_in_bucket", 0)), success=success, cycle_time_s=cycle,
                    spilled=int(info.get("spilled", 0)), physics_error=bool(info.get("physics_error", False)),
-                   steps=int(steps), episode_return=float(episode_return))
+                   steps=int(steps), episode_return=float(episode_return),
+                   reached=bool(info.get("reached", success)),
+                   volumetric_fill=float(info.get("volumetric_fill", math.nan)),
+                   overloaded=bool(info.get("overloaded", False)), world=dict(info.get("world") or {}))
 
     @classmethod
     def from_dict(cls, data: Mapping[str, Any]) -> EpisodeOutcome:
@@ -65,8 +80,16 @@ class EpisodeOutcome:
         return cls(seed=int(data.get("seed", -1)), fill_factor=float(data["fill_factor"]),
                    mass_kg=float(data["mass_kg"]), particles=int(data["particles"]), success=bool(data["success"]),
                    cycle_time_s=cycle, spilled=int(data["spilled"]), physics_error=bool(data["physics_error"]),
-                   steps=int(data.get("steps", 0)), episode_return=float(data.get("episode_return", 0.0)))
+                   steps=int(data.get("steps", 0)), episode_return=float(data.get("episode_return", 0.0)),
+                   reached=bool(data.get("reached", data["success"])),
+                   volumetric_fill=_number(data.get("volumetric_fill")),
+                   overloaded=bool(data.get("overloaded", False)), world=dict(data.get("world") or {}))
 
     def as_dict(self) -> dict[str, Any]:
         """Plain types for JSON (``cycle_time_s`` is ``null`` when the episode did not succeed)."""
         return asdict(self)
+
+
+def _number(value: Any) -> float:
+    """A stored number; ``None`` (JSON's null for NaN) reads as NaN."""
+    return math.nan if value is None else float(value)

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import copy
+from collections import deque
 from typing import Any
 
 import gymnasium as gym
@@ -11,8 +13,11 @@ from gymnasium.wrappers import TimeLimit
 from autoscoop.core import state as state_mod
 from autoscoop.core.config import ScoopConfig
 from autoscoop.core.reward import is_penetrating, scoop_reward
+from autoscoop.core.sensing import RawReadings, SensorNoise, add_noise, delay_steps
 from autoscoop.core.state import CommandLimits, Measurements
+from autoscoop.sim.capacity import volumetric_fill
 from autoscoop.sim.scene import ScoopSim
+from autoscoop.sim.world import draw_world, scene_key, world_config
 
 
 class ScoopEnv(gym.Env):
@@ -95,9 +100,13 @@ class ScoopEnv(gym.Env):
         if render_mode not in (None, *self.metadata["render_modes"]):
             raise ValueError(f"render_mode {render_mode!r} is not supported; use one of {self.metadata['render_modes']}")
         self.config = config
+        self.episode_config = config
+        """this episode's config: ``config`` with a randomised world's draws in place (``info["world"]``)"""
+        self.world: dict[str, Any] = {}
         self.render_mode = render_mode
         self.metadata = {**self.metadata, "render_fps": int(round(1.0 / config.env.control_period_s))}
         self.sim = ScoopSim(config)
+        self._scenes = {scene_key(config): self.sim}
         self.limits = CommandLimits.for_robot(config.robot)
         self.action_space = gym.spaces.Box(-1.0, 1.0, shape=(state_mod.ACTION_SIZE,), dtype=np.float32)
         self.observation_space = gym.spaces.Box(-np.inf, np.inf, shape=(state_mod.STATE_SIZE,), dtype=np.float32)
@@ -109,6 +118,10 @@ class ScoopEnv(gym.Env):
         self._ever_inside = np.zeros(config.pile.n_particles, dtype=bool)
         self._last_obs = np.zeros(state_mod.STATE_SIZE, dtype=np.float32)
         self._instabilities = 0
+        self._noise = SensorNoise()
+        self._noise_rng: np.random.Generator | None = None
+        self._delay_steps = 0
+        self._sensed: deque[Measurements] = deque(maxlen=1)
 
     # ------------------------------------------------------------------ Gymnasium API
     def reset(self, *, seed: int | None = None, options: dict | None = None) -> tuple[np.ndarray, dict]:
@@ -123,30 +136,65 @@ class ScoopEnv(gym.Env):
             raise ValueError(f"ScoopEnv.reset: unknown option(s) {sorted(map(str, options))}; "
                              "no reset options are supported (pass options=None or {})")
         super().reset(seed=seed)
-        self.sim.reset(self.np_random)
-        cfg = self.config
-        self._targets = np.array([0.0, cfg.robot.start_lift_rad, cfg.robot.start_tilt_rad])
-        self._ever_inside[:] = False
-        self._previous = None
-        self._instabilities = self.sim.instability_count()
         if self._mass_estimator is not None:  # the last episode's load cell stops observing the sim
             self._mass_estimator.detach()
-        if self.config.env.mass_source == "torque":
+            self._mass_estimator = None
+        self._start_world()
+        cfg = self.episode_config
+        self._targets = np.array([0.0, cfg.robot.start_lift_rad, cfg.robot.start_tilt_rad])
+        self._ever_inside = np.zeros(cfg.pile.n_particles, dtype=bool)
+        self._previous = None
+        self._instabilities = self.sim.instability_count()
+        if cfg.env.mass_source == "torque":
             from autoscoop.sim.load_cell import TorqueMassSensor  # noqa: PLC0415 - optional until used
-            self._mass_estimator = TorqueMassSensor.for_env(cfg, self.np_random)
+            offset = tuple(self.world.get("torque_offset_nm", (0.0, 0.0)))
+            self._mass_estimator = TorqueMassSensor.for_env(cfg, self.np_random, offset_nm=offset)
+        self._noise = SensorNoise.from_config(cfg.sensor)
+        self._noise_rng = None if self._noise.silent else np.random.default_rng(int(self.np_random.integers(2**63)))
+        self._delay_steps = delay_steps(cfg.sensor.delay_s, cfg.env.timestep_s)
+        # the delay line: readings taken, the oldest first (the first is this instant's, the robot at rest)
+        self._sensed = deque([self._sense()] if self._delay_steps else [], maxlen=self._delay_steps // cfg.substeps + 1)
         obs, info = self._observe()
         info["physics_error"] = not np.all(np.isfinite(obs))
         return obs, info
 
+    def _start_world(self) -> None:
+        """This episode's world: draw it (a ``randomize`` section in force), pick its scene, reset the sim."""
+        base = self.config
+        if not base.randomize.active:
+            self.sim.reset(self.np_random)
+            return
+        self.world = draw_world(base, self.np_random)
+        cfg = self.episode_config = world_config(base, self.world)
+        key = scene_key(cfg)
+        if key not in self._scenes:
+            self._scenes[key] = ScoopSim(cfg)
+        if self._scenes[key] is not self.sim:
+            self.close()  # a renderer belongs to one model
+        self.sim = self._scenes[key]
+        self.sim.apply_parameters(cfg)
+        self.sim.reset(self.np_random, pile=cfg.pile, start_gap_m=cfg.robot.start_gap_m,
+                       prescoop_depth_m=self.world.get("prescoop_depth_m"))
+
     def step(self, action: np.ndarray) -> tuple[np.ndarray, float, bool, bool, dict]:
         self._targets = state_mod.advance_targets(self._targets, action, self.limits)
-        cfg = self.config
+        cfg = self.episode_config
         period = cfg.env.control_period_s
         lift_rate, tilt_rate = state_mod.servo_rate(
             self._targets[1:], [self.sim.lift_setpoint_rad, self.sim.tilt_setpoint_rad], period,
             [cfg.robot.lift_speed_radps, cfg.robot.tilt_speed_radps])
         self.sim.command(self._targets[0], lift_rate, tilt_rate)
-        self.sim.step(cfg.substeps)
+        # the readings the policy gets are sensor.delay_s old: taken that many physics steps before
+        # the end of a control period (this one, or one still in the delay line)
+        late = self._delay_steps % cfg.substeps
+        if late:
+            self.sim.step(cfg.substeps - late)
+            self._sensed.append(self._sense())
+            self.sim.step(late)
+        else:
+            self.sim.step(cfg.substeps)
+            if self._delay_steps:
+                self._sensed.append(self._sense())
 
         if not self.sim.is_finite() or self.sim.instability_count() > self._instabilities:
             info = self._physics_error_info()
@@ -158,7 +206,7 @@ class ScoopEnv(gym.Env):
         reward, terms = scoop_reward(info["tip_to_pile_m"], info["tip_to_terminal_m"], info["penetrating"],
                                      float(np.float32(info["fill_factor"])), cfg.reward)
         info.update(terms)
-        terminated = info["success"]
+        terminated = info["reached"]  # the scoop ends at the terminal point, loaded or not
         return obs, float(reward), bool(terminated), False, info
 
     def render(self) -> np.ndarray | None:
@@ -177,31 +225,60 @@ class ScoopEnv(gym.Env):
             self._renderer = None
 
     # ------------------------------------------------------------------ internals
-    def _observe(self) -> tuple[np.ndarray, dict[str, Any]]:
-        sim, cfg = self.sim, self.config
+    def _pile_geometry(self) -> tuple[np.ndarray, float, float]:
+        """(particles inside the bucket, tip to the pile's surface m, tip to the nearest particle centre m), now."""
+        sim = self.sim
         inside = sim.particles_in_bucket()
+        offsets = sim.particle_positions - sim.tip_world
+        distances = np.sqrt(np.einsum("ij,ij->i", offsets, offsets))
+        outside = ~inside
+        radius = self.episode_config.pile.radius_m
+        tip_to_pile = float(max(distances[outside].min() - radius, 0.0)) if outside.any() else 0.0
+        nearest = float(distances.min()) if len(distances) else np.inf
+        return inside, tip_to_pile, nearest
+
+    def _sense(self, geometry: tuple[np.ndarray, float, float] | None = None) -> Measurements:
+        """What the robot's sensors read now, through the link's noise (``sensor.*``); the mass is the
+        load cell's estimate (torque source) or the counted mass."""
+        sim = self.sim
+        inside, tip_to_pile, _ = geometry or self._pile_geometry()
+        if self._mass_estimator is None:
+            mass = float(sim.particle_masses[inside].sum())
+        else:
+            mass = self._mass_estimator.estimate(sim)
+        lift, tilt, speed = sim.lift_rad, sim.tilt_rad, sim.odometry_speed_mps
+        if self._noise_rng is not None:
+            noisy = add_noise(RawReadings(lift_rad=lift, tilt_rad=tilt, speed_mps=speed, range_m=tip_to_pile,
+                                             tilt_torque_nm=0.0, lift_torque_nm=0.0), self._noise, self._noise_rng)
+            lift, tilt, speed, tip_to_pile = noisy.lift_rad, noisy.tilt_rad, noisy.speed_mps, noisy.range_m
+        return Measurements(mass_kg=mass, pile_distance_m=tip_to_pile, speed_mps=speed, lift_rad=lift, tilt_rad=tilt)
+
+    def _observe(self) -> tuple[np.ndarray, dict[str, Any]]:
+        sim, cfg = self.sim, self.episode_config
+        geometry = self._pile_geometry()
+        inside, tip_to_pile, nearest = geometry
         self._ever_inside |= inside
         true_mass = float(sim.particle_masses[inside].sum())
         tip = sim.tip_world
-        offsets = sim.particle_positions - tip
-        distances = np.sqrt(np.einsum("ij,ij->i", offsets, offsets))
-        outside = ~inside
-        tip_to_pile = float(max(distances[outside].min() - cfg.pile.radius_m, 0.0)) if outside.any() else 0.0
-        nearest = float(distances.min()) if len(distances) else np.inf
         tip_to_terminal = float(np.linalg.norm(tip[[0, 2]] - self._terminal_xz))  # in the arm's plane: see docstring
-        mass = true_mass if self._mass_estimator is None else self._mass_estimator.estimate(sim)
-        now = Measurements(mass_kg=mass, pile_distance_m=tip_to_pile, speed_mps=sim.odometry_speed_mps,
-                           lift_rad=sim.lift_rad, tilt_rad=sim.tilt_rad)
+        # without a delay, the readings are this instant's; with one, the oldest in the delay line
+        now = self._sense(geometry) if not self._delay_steps else self._sensed[0]
         obs = state_mod.build_state(now, self._previous, cfg.reward.rated_load_kg)
         self._previous = now
         self._last_obs = obs
-        success = tip_to_terminal <= cfg.reward.epsilon_m
+        fill = true_mass / cfg.reward.rated_load_kg
+        particles = int(inside.sum())
+        volumetric = volumetric_fill(particles, cfg.pile.radius_m)
+        reached = tip_to_terminal <= cfg.reward.epsilon_m
         info: dict[str, Any] = {
-            "particles_in_bucket": int(inside.sum()),
+            "particles_in_bucket": particles,
             "mass_in_bucket_kg": true_mass,
-            "fill_factor": true_mass / cfg.reward.rated_load_kg,
+            "fill_factor": fill,
+            "volumetric_fill": volumetric,
             "penetrating": is_penetrating(nearest, cfg.reward),
-            "success": bool(success),
+            "reached": bool(reached),
+            "success": bool(reached and max(fill, volumetric) >= cfg.scoop.min_fill),
+            "overloaded": bool(fill > cfg.scoop.overload_fill),
             "spilled": int((self._ever_inside & ~inside).sum()),
             "physics_error": False,
             "elapsed_s": sim.elapsed_s,
@@ -210,17 +287,19 @@ class ScoopEnv(gym.Env):
             "tip_to_terminal_m": tip_to_terminal,
             "lift_torque_nm": sim.lift_torque_nm,
             "tilt_torque_nm": sim.tilt_torque_nm,
+            "world": copy.deepcopy(self.world),
         }
-        if success:
+        if reached:
             info["cycle_time_s"] = sim.elapsed_s
         return obs, info
 
     def _physics_error_info(self) -> dict[str, Any]:
-        return {"particles_in_bucket": 0, "mass_in_bucket_kg": 0.0, "fill_factor": 0.0, "penetrating": False,
-                "success": False, "spilled": 0, "physics_error": True, "elapsed_s": self.sim.elapsed_s,
+        return {"particles_in_bucket": 0, "mass_in_bucket_kg": 0.0, "fill_factor": 0.0, "volumetric_fill": 0.0,
+                "penetrating": False, "reached": False, "success": False, "overloaded": False, "spilled": 0,
+                "physics_error": True, "elapsed_s": self.sim.elapsed_s,
                 "tip_to_pile_m": float("nan"), "tip_to_terminal_m": float("nan"),
                 "lift_torque_nm": float("nan"), "tilt_torque_nm": float("nan"),
-                "reward_progress": 0.0, "reward_mass": 0.0}
+                "reward_progress": 0.0, "reward_mass": 0.0, "world": copy.deepcopy(self.world)}
 
 
 def make_scoop_env(config: ScoopConfig | None = None, render_mode: str | None = None,

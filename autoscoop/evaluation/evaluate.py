@@ -1,8 +1,11 @@
 """Run a controller for N episodes and measure it the way earth-moving people do.
 
-Definitions (docs/definitions.md): fill factor = mass in the bucket at the end / rated load; cycle time =
-seconds from the start to success (failed episodes are reported apart); success = the tip reached
-the terminal point in time; spillage = particles that were in the bucket and are not at the end.
+Definitions (docs/definitions.md): fill factor = mass in the bucket at the end / rated load; volumetric
+fill = the particles' solid volume / the bucket's capacity; cycle time = seconds from the start to
+success (failed episodes are reported apart); success = the tip reached the terminal point in time
+loaded (fill factor or volumetric fill, whichever is higher, at least ``scoop.min_fill``); reached =
+the terminal point reached, loaded or not; overload = fill factor above ``scoop.overload_fill``;
+spillage = particles that were in the bucket and are not at the end.
 """
 
 from __future__ import annotations
@@ -76,7 +79,10 @@ def format_table(summary: dict[str, Any]) -> str:
         ("fill factor", pm("fill_factor")),
         ("mass in bucket (kg)", pm("mass_kg", 2)),
         ("cycle time (s, successes)", pm("cycle_time", 2)),
-        ("success rate", f"{summary['success_rate']:.3f}"),
+        ("volumetric fill", pm("volumetric_fill")),
+        ("success rate (reached loaded)", f"{summary['success_rate']:.3f}"),
+        ("reached rate", f"{summary['reached_rate']:.3f}"),
+        ("overload rate", f"{summary['overload_rate']:.3f}"),
         ("spillage (particles)", pm("spillage", 2)),
         ("physics errors", str(summary["physics_errors"])),
     ]

@@ -48,6 +48,7 @@ class EpisodeRecorder(gym.Wrapper):
                             time_limit_s=config.env.max_episode_s,
                             pile_angle_deg=sim.pile_angle_deg,  # this episode's (a mix of piles)
                             **{**self.base_meta, "seed": seed})
+        meta["world"] = dict(info.get("world") or {})  # a randomised world's draws: a failure traced to its world
         meta["start"] = {
             "state": np.asarray(obs, dtype=float).round(6).tolist(),
             "lift_rad": sim.lift_rad, "tilt_rad": sim.tilt_rad,

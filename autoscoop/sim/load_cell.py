@@ -83,15 +83,20 @@ class TorqueMassSensor:
         use_imu_pitch: correct for the chassis pitch (the robot has an IMU); else gravity along chassis -z.
         average: average the readings over the physics steps since the previous estimate.
         clip_negative: report 0 instead of negative masses (noise on an empty bucket), as a
-            particle count never goes below zero. Reports follow :func:`autoscoop.core.payload.reported_mass_kg`,
+            particle count never goes below zero.
+        offset_nm: constant offsets of the (lift, tilt) torque readings, N*m (a miscalibrated load
+            cell; a randomised world draws them). Reports follow :func:`autoscoop.core.payload.reported_mass_kg`,
             as the ROS node's do (an undefined estimate keeps the previous report).
     """
 
     def __init__(self, estimator: PayloadEstimator | None = None, noise_nm: float = 0.0,
                  rng: np.random.Generator | None = None, use_imu_pitch: bool = True, average: bool = True,
-                 clip_negative: bool = True) -> None:
+                 clip_negative: bool = True, offset_nm: tuple[float, float] = (0.0, 0.0)) -> None:
         if not (math.isfinite(noise_nm) and noise_nm >= 0.0):
             raise ValueError(f"load-cell noise must be a finite number >= 0 N*m, got {noise_nm}")
+        if len(offset_nm) != 2 or not all(math.isfinite(v) for v in offset_nm):
+            raise ValueError(f"load-cell offset must be two finite numbers (lift, tilt) N*m, got {offset_nm}")
+        self.offset_nm = (float(offset_nm[0]), float(offset_nm[1]))
         self.estimator = estimator or PayloadEstimator()
         self.noise_nm = float(noise_nm)
         self.rng = rng if rng is not None else np.random.default_rng()
@@ -103,8 +108,11 @@ class TorqueMassSensor:
 
     @classmethod
     def for_env(cls, config: ScoopConfig, rng: np.random.Generator,
-                calibration: PayloadCalibration | str | Path | None = None) -> TorqueMassSensor:
-        """The sensor the environment uses: eq. 8, noise ``env.load_cell_noise_nm``, control-period averages.
+                calibration: PayloadCalibration | str | Path | None = None,
+                offset_nm: tuple[float, float] = (0.0, 0.0)) -> TorqueMassSensor:
+        """The sensor the environment uses: eq. 8, control-period averages, noise ``env.load_cell_noise_nm``
+        on each average plus ``sensor.torque_noise_nm`` on each physics step's sample (averaged with them:
+        divided by the square root of the steps per control period; the two added in quadrature).
 
         The noise comes from a child of ``rng`` (one draw), so episodes with the same seed lay out the
         same pile whichever mass source is used.
@@ -118,7 +126,10 @@ class TorqueMassSensor:
         if isinstance(calibration, (str, Path)):
             calibration = PayloadCalibration.load(calibration)
         child = np.random.default_rng(int(rng.integers(2**63)))
-        return cls(PayloadEstimator(calibration or PayloadCalibration()), config.env.load_cell_noise_nm, child)
+        noise = config.env.load_cell_noise_nm
+        if config.sensor.torque_noise_nm:
+            noise = math.hypot(noise, config.sensor.torque_noise_nm / math.sqrt(config.substeps))
+        return cls(PayloadEstimator(calibration or PayloadCalibration()), noise, child, offset_nm=offset_nm)
 
     def detach(self) -> None:
         """Stop averaging the sim's physics steps (an episode ended; the environment makes a new sensor)."""
@@ -136,8 +147,8 @@ class TorqueMassSensor:
             clean = instant_reading(sim)
         noise = self.rng.normal(0.0, self.noise_nm, 2) if self.noise_nm > 0 else np.zeros(2)
         return PayloadReading(lift_rad=clean.lift_rad, tilt_rad=clean.tilt_rad,
-                              lift_torque_nm=clean.lift_torque_nm + float(noise[0]),
-                              tilt_torque_nm=clean.tilt_torque_nm + float(noise[1]),
+                              lift_torque_nm=clean.lift_torque_nm + self.offset_nm[0] + float(noise[0]),
+                              tilt_torque_nm=clean.tilt_torque_nm + self.offset_nm[1] + float(noise[1]),
                               chassis_pitch_rad=clean.chassis_pitch_rad if self.use_imu_pitch else 0.0)
 
     def estimate(self, sim: ScoopSim) -> float:

@@ -6,6 +6,7 @@ This module owns the simulator; the task (state, reward, episode) lives in ``aut
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
 from importlib import resources
 
@@ -37,6 +38,12 @@ def scene_path() -> str:
 
 SETTLE_EXTRA_S = 3.0
 """Longest extra time a new pile may take to come to rest after ``pile.settle_s``."""
+PRESCOOP_HEIGHT_M = 0.20
+"""An earlier scoop took particles from the face up to this height (about the bucket's opening), m."""
+PARKED_X_M, PARKED_Y_M = -4.0, 3.0
+"""Where particles taken by an earlier scoop rest: behind the robot and to its side, out of every reading."""
+SETTLED_BANK_SIZE = 256
+"""Most settled piles one scene keeps (a randomised world settles a pile per angle and earlier scoop)."""
 SLEEP_TOLERANCE = 0.03
 """Bodies slower than this (MuJoCo's sleep_tolerance) fall asleep; a resting pile then costs almost nothing."""
 
@@ -140,29 +147,51 @@ class ScoopSim:
         self._wheel_dofs = np.array([m.joint(w).dofadr[0] for w in WHEELS], dtype=int)
         self._lift_act_state = m.actuator_actadr[self._lift_act]
         self._tilt_act_state = m.actuator_actadr[self._tilt_act]
+        self._particle_geoms = np.array([m.geom(f"particle_{i:03d}").id for i in range(self.n_particles)], dtype=int)
+        self._wheel_geoms = np.array([m.geom(w).id for w in WHEELS], dtype=int)
+        self._bucket_geoms = np.array([g for g in range(m.ngeom) if m.geom(g).name.startswith("bucket_")], dtype=int)
+        self._particle_inertia_per_kg = m.body_inertia[self._particle_bodies] / m.body_mass[self._particle_bodies, None]
         self.time_origin_s = 0.0
-        self._settled: dict[int, mujoco.MjData] = {}
+        self._settled: dict[tuple, mujoco.MjData] = {}
         self.variant = 0
+        self._pile = config.pile
         self._substep_observers: list[Callable[[], None]] = []
 
     # ---------------------------------------------------------------- reset and stepping
-    def reset(self, rng: np.random.Generator | None = None) -> None:
+    def reset(self, rng: np.random.Generator | None = None, *, pile: PileConfig | None = None,
+              start_gap_m: float | None = None, prescoop_depth_m: float | None = None) -> None:
         """Start an episode: a settled pile (toe at x = 0), the robot's tip ``start_gap_m`` before it.
 
         The pile is one of ``pile.variants`` jittered layouts, each settled once (until it rests) and
         then restored by copying the whole simulator state, its sleeping pile included: a resting
         pile costs almost nothing to simulate until the bucket touches it. The start gap varies by
         up to ``robot.start_gap_jitter_m``. The episode clock (:attr:`elapsed_s`) starts here.
+
+        Args:
+            rng: the episode's generator (variant, then start-gap jitter).
+            pile: this episode's pile (a randomised world: its angle), instead of the config's; its
+                particle count and radius must be the compiled scene's.
+            start_gap_m: this episode's start gap, m, instead of ``robot.start_gap_m``.
+            prescoop_depth_m: the pile was scooped once before: the particles within this distance
+                behind its face (below :data:`PRESCOOP_HEIGHT_M`) were taken away, and the rest
+                settled again (:meth:`prescoop`).
         """
         rng = rng if rng is not None else np.random.default_rng()
         variant = int(rng.integers(self.config.pile.variants))
         self.variant = variant
-        if variant not in self._settled:
-            self._settled[variant] = self._settle(variant)
-        mujoco.mj_copyData(self.data, self.model, self._settled[variant])
+        self._pile = self.pile_of_variant(variant) if pile is None else pile
+        key: tuple = (variant,) if pile is None and prescoop_depth_m is None else (
+            variant, round(self._pile.angle_deg, 3), None if prescoop_depth_m is None else round(prescoop_depth_m, 3))
+        if key not in self._settled:
+            if len(self._settled) >= SETTLED_BANK_SIZE:  # forget the oldest settled pile
+                self._settled.pop(next(iter(self._settled)))
+            self._settled[key] = self._settle(variant, self._pile, prescoop_depth_m)
+        mujoco.mj_copyData(self.data, self.model, self._settled[key])
         jitter = self.config.robot.start_gap_jitter_m
         if jitter > 0:
             self.data.qpos[self._root_qpos] += rng.uniform(-jitter, jitter)
+        if start_gap_m is not None:
+            self.data.qpos[self._root_qpos] -= start_gap_m - self.config.robot.start_gap_m
         mujoco.mj_kinematics(self.model, self.data)  # positions only: keeps the pile asleep
         self.time_origin_s = float(self.data.time)
 
@@ -174,29 +203,74 @@ class ScoopSim:
     @property
     def pile_angle_deg(self) -> float:
         """Face slope of the pile in the current episode, degrees."""
-        return self.pile_of_variant(self.variant).angle_deg
+        return self._pile.angle_deg
 
-    def _settle(self, variant: int) -> mujoco.MjData:
-        """Build pile ``variant`` (its own jitter), let it settle under gravity, return the state."""
+    def apply_parameters(self, config: ScoopConfig) -> None:
+        """Write one episode's physical parameters into the compiled model (no recompiling): particle
+        mass and friction, wheel-ground and bucket friction, actuator torque and speed limits.
+
+        ``config`` must describe the same scene (particle count and radius) as the one compiled; a
+        randomised world (:mod:`autoscoop.sim.world`) calls this before each episode's reset.
+        """
+        if config.pile.n_particles != self.n_particles:
+            raise ValueError(f"apply_parameters: {config.pile.n_particles} particles, the scene has {self.n_particles}")
+        m, robot, pile = self.model, config.robot, config.pile
+        m.body_mass[self._particle_bodies] = pile.particle_mass_kg
+        m.body_inertia[self._particle_bodies] = self._particle_inertia_per_kg * pile.particle_mass_kg
+        self._particle_mass = m.body_mass[self._particle_bodies].copy()
+        m.geom_friction[self._particle_geoms, 0] = pile.friction
+        m.geom_friction[self._wheel_geoms, 0] = robot.ground_friction
+        m.geom_friction[self._bucket_geoms, 0] = robot.bucket_friction
+        m.actuator_forcerange[self._lift_act] = [-robot.lift_torque_limit_nm, robot.lift_torque_limit_nm]
+        m.actuator_forcerange[self._tilt_act] = [-robot.tilt_torque_limit_nm, robot.tilt_torque_limit_nm]
+        m.actuator_forcerange[self._wheel_acts] = [-robot.wheel_torque_limit_nm, robot.wheel_torque_limit_nm]
+        m.actuator_ctrlrange[self._lift_act] = [-robot.lift_speed_radps, robot.lift_speed_radps]
+        m.actuator_ctrlrange[self._tilt_act] = [-robot.tilt_speed_radps, robot.tilt_speed_radps]
+
+    def _settle(self, variant: int, pile: PileConfig, prescoop_depth_m: float | None = None) -> mujoco.MjData:
+        """Build pile ``variant`` (its own jitter) of ``pile``'s angle, let it settle under gravity
+        (scooped once before, with ``prescoop_depth_m``), return the state."""
         m, d, cfg = self.model, self.data, self.config
         mujoco.mj_resetData(m, d)
         lift, tilt = cfg.robot.start_lift_rad, cfg.robot.start_tilt_rad
         tip_x_chassis = kinematics.arm_pose(lift, tilt).tip[0]
         self.set_pose(-cfg.robot.start_gap_m - tip_x_chassis, lift, tilt)
-        centres = pile_layout(self.pile_of_variant(variant), np.random.default_rng([variant, 20211]))
+        centres = pile_layout(pile, np.random.default_rng([variant, 20211]))
         for index, centre in enumerate(centres):
             self._place_particle(index, centre)
         mujoco.mj_forward(m, d)
+        self._settle_pile(cfg.pile.settle_s)
+        if prescoop_depth_m is not None:
+            self.prescoop(pile.angle_deg, prescoop_depth_m)
+            self._settle_pile(cfg.pile.settle_s)
+        settled = mujoco.MjData(m)
+        mujoco.mj_copyData(settled, m, d)
+        return settled
+
+    def _settle_pile(self, settle_s: float) -> None:
+        """Step ``settle_s``, then on until the pile rests (at most :data:`SETTLE_EXTRA_S` more)."""
+        m, d = self.model, self.data
         step = m.opt.timestep
-        mujoco.mj_step(m, d, nstep=int(round(cfg.pile.settle_s / step)))
+        mujoco.mj_step(m, d, nstep=int(round(settle_s / step)))
         robot_bodies = m.nbody - self.n_particles
         for _ in range(int(round(SETTLE_EXTRA_S / step))):
             if d.nbody_awake <= robot_bodies:
                 break
             mujoco.mj_step(m, d)
-        settled = mujoco.MjData(m)
-        mujoco.mj_copyData(settled, m, d)
-        return settled
+
+    def prescoop(self, angle_deg: float, depth_m: float) -> int:
+        """Take away what an earlier scoop took: every particle whose centre lies within ``depth_m``
+        behind the pile's face line (the slope ``angle_deg`` through the toe, one radius in) and below
+        :data:`PRESCOOP_HEIGHT_M`; they are parked at rest far behind the robot. Returns how many.
+        """
+        positions = self.particle_positions.copy()
+        radius = self._pile.radius_m
+        behind_face = positions[:, 0] - radius - (positions[:, 2] - radius) / math.tan(math.radians(angle_deg))
+        taken = np.flatnonzero((behind_face < depth_m) & (positions[:, 2] < PRESCOOP_HEIGHT_M))
+        for k, index in enumerate(taken):
+            self.set_particle(int(index), np.array([PARKED_X_M - 3 * radius * k, PARKED_Y_M, radius]))
+        mujoco.mj_forward(self.model, self.data)
+        return len(taken)
 
     def command(self, forward_speed_mps: float, lift_rate_radps: float, tilt_rate_radps: float) -> None:
         """Set the actuator inputs: wheel speed for a forward speed, and the servo setpoints' rates."""

@@ -62,16 +62,16 @@ class SimNode:
 
     Args:
         bridge: the simulator.
-        delay_s: delay of every sensor message, s.
+        delay_s: delay of every sensor message, s; default: the bridge's ``sensor.delay_s``.
         argv: command-line arguments with ROS remappings; default ``sys.argv``.
         node_name: the node's name.
     """
 
-    def __init__(self, bridge: SimBridge, delay_s: float = 0.0, argv: list[str] | None = None,
+    def __init__(self, bridge: SimBridge, delay_s: float | None = None, argv: list[str] | None = None,
                  node_name: str = NODE_NAME) -> None:
         self.rospy = rospy = import_rospy()
         self.bridge = bridge
-        self.delay_s = delay_s
+        self.delay_s = bridge.task_config.sensor.delay_s if delay_s is None else delay_s
         self.topics = topics = bridge.robot.topics
         self.lock = threading.Lock()
         self.arrived: list[tuple[str, float]] = []
@@ -80,7 +80,7 @@ class SimNode:
         """when the episode's first command arrived (monotonic s)"""
         self.live = threading.Event()
         """set while an episode runs: commands are taken only then"""
-        self.line = DelayLine(delay_s)
+        self.line = DelayLine(self.delay_s)
         self.stats = SimRunStats()
         rospy.init_node(node_name, argv=argv, anonymous=False)
         self.sensors = publishers(topics, ("joint_states", "odom", "pile_range", "bucket_torque", "lift_torque",
