@@ -15,6 +15,7 @@ COMMANDS = [
     "autoscoop.commands.compare_cmd",
     "autoscoop.commands.teleop_cmd",
     "autoscoop.commands.evaluate_cmd",
+    "autoscoop.commands.stress_cmd",
     "autoscoop.commands.train_cmd",
     "autoscoop.commands.bench_cmd",
     "autoscoop.commands.config_cmd",

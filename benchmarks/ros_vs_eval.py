@@ -1,8 +1,8 @@
 """Fill factor over ROS (``autoscoop ros sim`` + ``autoscoop ros controller``) against ``autoscoop eval``.
 
 Starts a private rosmaster, the controller and the simulator (same pile, same seeds as evaluation),
-runs N episodes in real time, then evaluates the same policy for the same seeds without ROS, and
-prints both with the topics' delay (stamp -> arrival, measured by the controller) and the
+runs N episodes in real time, then evaluates the same policy for the same seeds without ROS, with
+the same sensor link (``sensor.delay_s`` and the noise keys) and the same mass source, and prints both with the topics' delay (stamp -> arrival, measured by the controller) and the
 simulator's real-time factor. Acceptance: mean fill factors within 10 points.
 
     .venv/bin/python benchmarks/ros_vs_eval.py --episodes 20 --json benchmarks/results/ros_vs_eval.json
@@ -29,6 +29,23 @@ NOISE = ["--joint-noise-rad", "0.002", "--speed-noise-mps", "0.002", "--range-no
          "--torque-noise-nm", "0.2"]
 
 
+def eval_config(delay_s: float, noise: bool, robot_config: Path | None = None) -> ScoopConfig:
+    """The environment that predicts the ROS run: the same sensor link (``sensor.*``: the delay, and the
+    noise of :data:`NOISE`) and the mass the controller uses (the torque estimate, as the controller's
+    default ``payload.source: torque``, averaged over the control period with no extra load-cell noise;
+    the counted mass for ``payload.source: topic``)."""
+    from autoscoop.deploy.robot_config import load_robot_config  # noqa: PLC0415
+
+    source = load_robot_config(robot_config).payload.source if robot_config else "torque"
+    keys: dict[str, object] = {"sensor.delay_s": delay_s,
+                               "env.mass_source": "torque" if source == "torque" else "truth",
+                               "env.load_cell_noise_nm": 0.0}
+    if noise:
+        keys.update({f"sensor.{flag.lstrip('-').replace('-', '_')}": float(value)
+                     for flag, value in zip(NOISE[::2], NOISE[1::2], strict=True)})
+    return ScoopConfig().with_overrides(keys)
+
+
 def measure(policy: str, episodes: int, delay_s: float, noise: bool, seed: int = 0,
             robot_config: Path | None = None) -> dict:
     work = Path(tempfile.mkdtemp(prefix="autoscoop-ros-vs-eval-"))
@@ -51,7 +68,7 @@ def measure(policy: str, episodes: int, delay_s: float, noise: bool, seed: int =
             raise RuntimeError(f"ros sim failed:\n{sim.stdout[-2000:]}\n{sim.stderr[-2000:]}")
         ros_wall = time.monotonic() - started
     ros = json.loads((work / "ros.json").read_text())
-    config = ScoopConfig()
+    config = eval_config(delay_s, noise, robot_config)
     results = evaluate(load_policy(policy, config), config, episodes, seed=seed, progress=False)
     ev = summarize(results, config, policy)
     last = sorted((work / "robot").glob("*.npz"))[-1]  # the controller's delay statistics cover the whole run

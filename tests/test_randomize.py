@@ -135,7 +135,11 @@ def test_delay_shifts_the_readings_by_whole_physics_steps():
         plain.reset(seed=0)
         delayed.reset(seed=0)
         lift_per_step = [plain.sim.lift_rad]
-        plain.sim.add_substep_observer(lambda: lift_per_step.append(plain.sim.lift_rad))
+
+        def record(sim=plain.sim, out=lift_per_step) -> None:
+            out.append(sim.lift_rad)
+
+        plain.sim.add_substep_observer(record)
         substeps = plain.config.substeps
         actions = [np.array([1.0, -0.3, 0.4])] * 6
         for j, action in enumerate(actions, start=1):

@@ -29,17 +29,18 @@ from autoscoop.evaluation.summary import outcome_statistics
 
 def evaluate(policy: Policy, config: ScoopConfig, episodes: int, seed: int = 0,
              progress: bool = True, records_dir: str | Path | None = None,
-             records_meta: dict[str, Any] | None = None) -> list[EpisodeOutcome]:
+             records_meta: dict[str, Any] | None = None, label: str | None = None) -> list[EpisodeOutcome]:
     """Run ``episodes`` episodes with seeds ``seed, seed + 1, ...``; show a progress bar.
 
     With ``records_dir``, each episode's record (``autoscoop.envs.records``) is saved there as
-    ``episode_SEED.npz``, with ``records_meta`` (and the policy's name) in its metadata.
+    ``episode_SEED.npz``, with ``records_meta`` (and the policy's name) in its metadata. ``label``
+    names the progress bar (default ``eval POLICY``).
     """
     env = make_scoop_env(config)
     if records_dir is not None:
         env = EpisodeRecorder(env, {"policy": policy.name, "source": "eval", **(records_meta or {})})
     results: list[EpisodeOutcome] = []
-    bar = tqdm(range(episodes), desc=f"eval {policy.name}", unit="ep", disable=not progress)
+    bar = tqdm(range(episodes), desc=label or f"eval {policy.name}", unit="ep", disable=not progress)
     try:
         for i in bar:
             results.append(rollout(policy, env, seed + i))
