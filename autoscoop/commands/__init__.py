@@ -37,6 +37,20 @@ def check_output_file(path: Path, option: str) -> None:
         raise ValueError(f"{option} {path}: cannot be written, folder {parent} is not writable")
 
 
+def check_output_dir(path: Path, option: str) -> None:
+    """Fail now (ValueError, exit 2) if folder ``path`` could not be created or written later: a file, or under a
+    file or a read-only folder. A missing folder is fine (it is created when written)."""
+    if path.exists() and not path.is_dir():
+        raise ValueError(f"{option} {path}: is a file, not a folder")
+    existing = path
+    while not existing.exists() and existing != existing.parent:
+        existing = existing.parent
+    if not existing.is_dir():
+        raise ValueError(f"{option} {path}: cannot be created, {existing} is not a folder")
+    if not os.access(existing, os.W_OK | os.X_OK):
+        raise ValueError(f"{option} {path}: cannot be written, folder {existing} is not writable")
+
+
 def prepare_records_dir(path: Path, overwrite: bool, option: str = "--records") -> None:
     """Refuse (ValueError, exit 2) a records folder that is a file or is not empty, unless ``overwrite``:
     then its ``episode_*.npz`` records are removed (other files are left, and still refused if any)."""

@@ -8,7 +8,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from autoscoop.commands import add_config_args, config_from_args, write_json
+from autoscoop.commands import add_config_args, check_output_file, config_from_args, write_json
 from autoscoop.evaluation.bench import run_bench
 
 
@@ -26,6 +26,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    if args.json:  # fail before the first measurement, not after the last
+        check_output_file(args.json, "--json")
     if args.target == "payload":
         from autoscoop.commands.payload_cmd import run_payload_bench_cmd  # noqa: PLC0415
 

@@ -17,7 +17,14 @@ import time
 from pathlib import Path
 
 from autoscoop.agents.loading import load_policy
-from autoscoop.commands import add_config_args, config_from_args, seed_int, write_json
+from autoscoop.commands import (
+    add_config_args,
+    check_output_dir,
+    check_output_file,
+    config_from_args,
+    seed_int,
+    write_json,
+)
 from autoscoop.evaluation.evaluate import evaluate, format_table, summarize
 
 PILE_ANGLES_DEG = (25.0, 32.0, 40.0)
@@ -46,10 +53,11 @@ def run(args: argparse.Namespace) -> int:
     if args.episodes < 1:
         raise SystemExit(f"--episodes must be at least 1, got {args.episodes}")
     from autoscoop.report.data import find_record_files, load_episodes  # noqa: PLC0415 - matplotlib when needed
-    from autoscoop.report.markdown import slug, write_report  # noqa: PLC0415
+    from autoscoop.report.markdown import write_report  # noqa: PLC0415
 
     started = time.perf_counter()
     base = config_from_args(args)
+    check_outputs(args.out, [records_folder(args.out, spec, angle) for spec in args.policies for angle in args.angles])
     manual = args.manual if args.manual is not None else ([DEFAULT_MANUAL] if DEFAULT_MANUAL.is_dir() else [])
     record_dirs: list[Path] = []
     summaries = []
@@ -58,7 +66,7 @@ def run(args: argparse.Namespace) -> int:
         for angle in args.angles:
             config = base.with_overrides({"pile.angle_deg": angle})
             policy = load_policy(spec, config, trust=args.trust)
-            folder = args.out / "records" / slug(spec) / f"{angle:g}deg"
+            folder = records_folder(args.out, spec, angle)
             for old in folder.glob("episode_*.npz"):  # a previous run's extra episodes would join the table
                 old.unlink()
             results = evaluate(policy, config, args.episodes, seed=args.seed, records_dir=folder,
@@ -83,3 +91,20 @@ def run(args: argparse.Namespace) -> int:
     print("\n".join(f"wrote {path}" for path in [files.markdown, *files.figures, args.out / "summary.json"]))
     print(f"compare took {time.perf_counter() - started:.0f} s")
     return 0
+
+
+def records_folder(out: Path, spec: str, angle: float) -> Path:
+    """Where ``compare`` saves the records of controller ``spec`` on the pile of ``angle`` degrees."""
+    from autoscoop.report.markdown import slug  # noqa: PLC0415 - matplotlib when needed
+
+    return out / "records" / slug(spec) / f"{angle:g}deg"
+
+
+def check_outputs(out: Path, record_dirs: list[Path]) -> None:
+    """Fail before the first episode (ValueError naming the path) if ``--out`` or a file or folder under it
+    could not be written: the report, ``summary.json``, the records folders."""
+    check_output_dir(out, "--out")
+    for name in ("report.md", "summary.json"):
+        check_output_file(out / name, "--out")
+    for folder in record_dirs:
+        check_output_dir(folder, "--out")

@@ -13,7 +13,14 @@ import time
 from pathlib import Path
 
 from autoscoop.agents.loading import load_policy
-from autoscoop.commands import add_config_args, config_from_args, seed_int, write_json
+from autoscoop.commands import (
+    add_config_args,
+    check_output_dir,
+    check_output_file,
+    config_from_args,
+    seed_int,
+    write_json,
+)
 from autoscoop.core.config import ScoopConfig
 from autoscoop.core.policy import Policy
 from autoscoop.evaluation.evaluate import evaluate, format_table, summarize
@@ -44,10 +51,11 @@ def run(args: argparse.Namespace) -> int:
 
     started = time.perf_counter()
     config = config_from_args(args)
-    name = args.policy
-    policy = load_policy(name, config)
     out: Path = args.out
     records = out / "records"
+    check_outputs(out, records, video=not args.no_video)  # before the first episode, not after the last
+    name = args.policy
+    policy = load_policy(name, config)
     for old in records.glob("episode_*.npz"):  # a previous demo's episodes would join this report
         old.unlink()
 
@@ -71,6 +79,14 @@ def run(args: argparse.Namespace) -> int:
     print(f"wrote {len(results)} episode records to {records}")
     print(f"demo took {time.perf_counter() - started:.0f} s")
     return 0
+
+
+def check_outputs(out: Path, records: Path, video: bool) -> None:
+    """Fail (ValueError naming the path) if ``--out`` or what the demo writes under it could not be written."""
+    check_output_dir(out, "--out")
+    check_output_dir(records, "--out")
+    for name in ("summary.json", "report.md", *(("scoop.mp4", "scoop.gif") if video else ())):
+        check_output_file(out / name, "--out")
 
 
 def _film(policy: Policy, config: ScoopConfig, seed: int, fps: float, out: Path, evaluated) -> list[Path]:

@@ -10,23 +10,36 @@ from autoscoop.core.config import overrides_from_yaml, parse_set_args
 
 DEFAULT_EPISODES = 800
 """training episodes of a new run when ``--episodes`` is not given (the paper's)."""
+DEFAULTS = {"algo": "ddpg", "seed": 0, "n_envs": 1, "checkpoint_every": 50, "eval_every": 50, "eval_episodes": 10}
+"""a new run's settings where the options are not given (episodes: :data:`DEFAULT_EPISODES`). The options
+default to ``None`` so that ``--resume`` can tell what was given."""
+RECORDED = {"algo": "--algo", "seed": "--seed", "n_envs": "--n-envs", "checkpoint_every": "--checkpoint-every",
+            "eval_every": "--eval-every", "eval_episodes": "--eval-episodes", "demo_episodes": "--demo-episodes"}
+"""options whose value a run records in ``run.json`` (key: option): ``--resume`` takes them only with that value."""
+NOT_WITH_RESUME = {"out": "--out", "init": "--init", "trust": "--trust", "config": "--config", "overrides": "--set",
+                   "hyper": "--hyper"}
+"""options ``--resume`` refuses (argparse name: option): the run directory is ``--resume``'s, and the run keeps
+the settings in its ``config.yaml`` and ``hyperparams.yaml``."""
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
     parser = subparsers.add_parser("train", help="train a controller", description=__doc__)
-    parser.add_argument("--algo", default="ddpg", choices=["ddpg", "td3", "sac", "ppo"],
+    parser.add_argument("--algo", choices=["ddpg", "td3", "sac", "ppo"],
                         help="algorithm (default ddpg, the paper's); settings in autoscoop/training/hyperparams/ALGO.yaml")
     parser.add_argument("--episodes", type=int, default=None,
                         help=f"training episodes (default {DEFAULT_EPISODES}, as in the paper; "
                              "not with --resume: a resumed run keeps its recorded count)")
-    parser.add_argument("--seed", type=seed_int, default=0, help="random seed (0 or more)")
-    parser.add_argument("--n-envs", type=int, default=1, help="parallel simulators in subprocesses (default 1)")
-    parser.add_argument("--checkpoint-every", type=int, default=50, help="episodes between checkpoints (default 50)")
-    parser.add_argument("--eval-every", type=int, default=50,
-                        help="episodes between evaluations of the deterministic policy; the best is kept (0: keep the last)")
-    parser.add_argument("--eval-episodes", type=int, default=10, help="episodes per evaluation (default 10)")
+    parser.add_argument("--seed", type=seed_int, help="random seed (0 or more; default 0)")
+    parser.add_argument("--n-envs", type=int, help="parallel simulators in subprocesses (default 1)")
+    parser.add_argument("--checkpoint-every", type=int, help="episodes between checkpoints (default 50)")
+    parser.add_argument("--eval-every", type=int,
+                        help="episodes between evaluations of the deterministic policy; the best is kept "
+                             "(0: keep the last; default 50)")
+    parser.add_argument("--eval-episodes", type=int, help="episodes per evaluation (default 10)")
     parser.add_argument("--out", type=Path, help="run directory (default runs/ALGO-sSEED-TIME)")
-    parser.add_argument("--resume", type=Path, metavar="RUN_DIR", help="continue an interrupted run")
+    parser.add_argument("--resume", type=Path, metavar="RUN_DIR",
+                        help="continue an interrupted run with its recorded settings (--config, --set, --hyper, "
+                             "--init, --out and settings other than the recorded ones are refused)")
     parser.add_argument("--init", type=Path, metavar="RUN_DIR",
                         help="fine-tune: start from the policy of this finished run (same --algo)")
     parser.add_argument("--trust", action="store_true",
@@ -46,11 +59,12 @@ def run(args: argparse.Namespace) -> int:
     from autoscoop.training.run import TrainArgs, resume, train  # noqa: PLC0415 - torch is slow to import
 
     if args.resume:
-        if args.episodes is not None:
-            raise ValueError(f"--episodes cannot be given with --resume: a resumed run keeps the episode count "
-                             f"recorded in {args.resume / 'run.json'}")
+        check_resume_options(args)
         run_dir = resume(args.resume, progress=not args.no_progress)
     else:
+        for name, value in DEFAULTS.items():
+            if getattr(args, name) is None:
+                setattr(args, name, value)
         if args.episodes is None:
             args.episodes = DEFAULT_EPISODES
         if args.episodes < 1 or args.n_envs < 1 or args.checkpoint_every < 1 or args.eval_episodes < 1:
@@ -69,3 +83,32 @@ def run(args: argparse.Namespace) -> int:
                                   hyper=parse_set_args(args.hyper), demo_episodes=args.demo_episodes))
     print(f"run directory: {run_dir}")
     return 0
+
+
+def check_resume_options(args: argparse.Namespace) -> None:
+    """Refuse what ``--resume`` would otherwise ignore: ``--episodes``, the options of :data:`NOT_WITH_RESUME`,
+    and those of :data:`RECORDED` with another value than the run's ``run.json`` records (the same value is
+    harmless and taken). ``--no-progress`` is honoured.
+
+    Raises:
+        ValueError: naming the option and, for a recorded setting, both values and the ``run.json``.
+    """
+    info_path = args.resume / "run.json"
+    if args.episodes is not None:
+        raise ValueError(f"--episodes cannot be given with --resume: a resumed run keeps the episode count "
+                         f"recorded in {info_path}")
+    given = [option for name, option in NOT_WITH_RESUME.items() if getattr(args, name) not in (None, False, [])]
+    if given:
+        raise ValueError(f"{', '.join(given)} cannot be given with --resume: it continues {args.resume} with the "
+                         f"settings it recorded ({args.resume / 'config.yaml'}, {args.resume / 'hyperparams.yaml'}, "
+                         f"{info_path}); start a new run (--out) to change them")
+    asked = {name: getattr(args, name) for name in RECORDED if getattr(args, name) is not None}
+    if not asked:
+        return
+    from autoscoop.training.checkpoints import read_run_json  # noqa: PLC0415 - torch is slow to import
+
+    info = read_run_json(args.resume)
+    for name, value in asked.items():
+        if value != info.get(name):
+            raise ValueError(f"{RECORDED[name]} {value} does not match the run being resumed: {info_path} records "
+                             f"{name} = {info.get(name)!r}; a resumed run keeps its settings (leave {RECORDED[name]} out)")

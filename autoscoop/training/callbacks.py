@@ -17,7 +17,7 @@ from autoscoop.agents.loading import SB3Policy
 from autoscoop.core.config import ScoopConfig
 from autoscoop.envs.rollout import rollout
 from autoscoop.envs.scoop import make_scoop_env
-from autoscoop.training.checkpoints import actor_meta, save_checkpoint, save_safe_actor
+from autoscoop.training.checkpoints import actor_meta, save_checkpoint, save_safe_actor, write_run_json
 from autoscoop.training.factories import set_noise_scale
 
 CSV_FIELDS = ["episode", "reward", "fill_factor", "cycle_time_s", "success", "steps", "spilled", "physics_error",
@@ -30,10 +30,14 @@ EVALUATION_FIELDS = ["episode", "delivered_fill", "fill_factor", "success", "cyc
 class EpisodeLogger(BaseCallback):
     """Counts episodes, writes the CSV and TensorBoard scalars, decays the noise, checkpoints, stops at N.
 
+    Each checkpoint records the run's bookkeeping (episodes and evaluations done, wall time, best score)
+    and rewrites ``run.json`` with it, so a run killed at any moment resumes with the right numbers.
+
     Args:
         run_dir: the run directory.
         episodes: stop after this many episodes in total.
         done: episodes already done (when resuming).
+        info: the run's ``run.json`` (its ``wall_s``: seconds spent before, counted on; rewritten at checkpoints).
         spec: the algorithm's YAML (noise schedule).
         checkpoint_every: episodes between checkpoints.
         progress: show a progress bar.
@@ -42,18 +46,18 @@ class EpisodeLogger(BaseCallback):
         evaluate_at_start: evaluate the starting policy before learning (fine-tuning: it is the bar).
     """
 
-    def __init__(self, run_dir: Path, episodes: int, done: int, spec: dict[str, Any], checkpoint_every: int,
-                 progress: bool, evaluator: PolicyEvaluator | None = None, control_period_s: float = 0.25,
-                 evaluate_at_start: bool = False) -> None:
+    def __init__(self, run_dir: Path, episodes: int, done: int, info: dict[str, Any], spec: dict[str, Any],
+                 checkpoint_every: int, progress: bool, evaluator: PolicyEvaluator | None = None,
+                 control_period_s: float = 0.25, evaluate_at_start: bool = False) -> None:
         super().__init__()
         self.evaluate_at_start = evaluate_at_start
         self.control_period_s = control_period_s
-        self.run_dir, self.episodes, self.done = run_dir, episodes, done
+        self.run_dir, self.episodes, self.done, self.info = run_dir, episodes, done, info
         self.evaluator = evaluator
         self.spec, self.checkpoint_every = spec, checkpoint_every
         self.returns: dict[int, float] = {}
         self.recent: list[dict[str, Any]] = []
-        self.started = time.time()
+        self.started = time.time() - float(info.get("wall_s", 0.0))  # the run's clock, across resumes
         self._checkpoint_due = False
         self.bar = tqdm(total=episodes, initial=done, desc="train", unit="ep", disable=not progress)
         self.csv_file = open(run_dir / "episodes.csv", "a", newline="")
@@ -89,7 +93,7 @@ class EpisodeLogger(BaseCallback):
         row = {"episode": self.done, "reward": self.returns.pop(env_index, 0.0), "fill_factor": info["fill_factor"],
                "cycle_time_s": info.get("cycle_time_s", math.nan), "success": int(info["success"]),
                "steps": int(round(info["elapsed_s"] / self.control_period_s)), "spilled": info["spilled"],
-               "physics_error": int(info["physics_error"]), "wall_s": round(time.time() - self.started, 2)}
+               "physics_error": int(info["physics_error"]), "wall_s": round(self.wall_s(), 2)}
         self.csv.writerow(row)
         self.csv_file.flush()
         self.recent = (self.recent + [row])[-20:]
@@ -109,10 +113,23 @@ class EpisodeLogger(BaseCallback):
         if self.done % self.checkpoint_every == 0 and self.done < self.episodes:
             self._checkpoint_due = True
 
+    def wall_s(self) -> float:
+        """Seconds of wall time the run has taken: this process's part and the parts before a resume."""
+        return time.time() - self.started
+
+    def bookkeeping(self) -> dict[str, Any]:
+        """What a checkpoint records of the run (:data:`autoscoop.training.checkpoints.BOOKKEEPING`)."""
+        return {"episodes_done": self.done, "evaluations_done": self.evaluator.done if self.evaluator else 0,
+                "wall_s": round(self.wall_s(), 3), "best_score": self.info.get("best_score"),
+                "best_episode": self.info.get("best_episode")}
+
     def _on_rollout_end(self) -> None:
         # after the rollout's transitions are in the replay buffer (not yet in _on_step)
         if self._checkpoint_due:
-            save_checkpoint(self.model, self.run_dir, self.done)
+            bookkeeping = self.bookkeeping()
+            save_checkpoint(self.model, self.run_dir, bookkeeping, self.info["algo"])
+            self.info["wall_s"] = round(bookkeeping["wall_s"], 1)
+            write_run_json(self.run_dir, self.info)  # a kill from here on leaves run.json's numbers right
             self._checkpoint_due = False
 
     def _on_training_end(self) -> None:
@@ -124,13 +141,18 @@ class PolicyEvaluator:
     """Evaluates the deterministic policy every ``every`` episodes and keeps the best as ``policy.*``.
 
     The score is the delivered fill: the fill factor of successful episodes, zero for failures
-    (what a loader is for). Seeds are fixed, so every evaluation sees the same piles.
+    (what a loader is for). Seeds are fixed, so every evaluation sees the same piles. The kept policy
+    is replaced only by a strictly better score (the best so far is ``info["best_score"]``, -1 before any).
+
+    Args:
+        done: evaluations already in ``evaluations.csv`` (when resuming).
     """
 
     SEED = 10_000
 
-    def __init__(self, run_dir: Path, config: ScoopConfig, every: int, episodes: int, info: dict[str, Any]) -> None:
-        self.run_dir, self.every, self.episodes, self.info = run_dir, every, episodes, info
+    def __init__(self, run_dir: Path, config: ScoopConfig, every: int, episodes: int, info: dict[str, Any],
+                 done: int = 0) -> None:
+        self.run_dir, self.every, self.episodes, self.info, self.done = run_dir, every, episodes, info, done
         self.env = make_scoop_env(config)
         self.best = float(info.get("best_score", -1.0))
         path = run_dir / "evaluations.csv"
@@ -152,6 +174,7 @@ class PolicyEvaluator:
                "cycle_time_s": round(float(np.mean(cycles)), 3) if cycles else math.nan}
         self.csv.writerow(row)
         self.csv_file.flush()
+        self.done += 1
         logger.record("eval/delivered_fill", score)
         logger.record("eval/success", row["success"])
         # every evaluated actor stays (80 kB each): a policy judged on more episodes later can be picked

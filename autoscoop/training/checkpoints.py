@@ -1,9 +1,14 @@
 """A run directory's files on disk: checkpoints, the safe actor files, ``run.json``, the lock a writing
-process holds, and what resuming and fine-tuning read back (CSV truncation, the vetted initial zip)."""
+process holds, and what resuming and fine-tuning read back (CSV truncation, the vetted initial zip).
+
+A checkpoint (``checkpoint/``) holds no pickle: ``state.json`` (format, the run's bookkeeping, the model's
+counters and how its tensors nest, each file's SHA-256), ``tensors.safetensors``, ``replay_buffer.npz`` and
+``best/`` (a copy of the best policy so far); see :mod:`autoscoop.training.model_state`."""
 
 from __future__ import annotations
 
 import json
+import math
 import os
 import shutil
 import socket
@@ -18,6 +23,7 @@ from filelock import FileLock, Timeout
 from autoscoop.agents.loading import zip_is_vouched_for
 from autoscoop.agents.policy_files import PolicyFileError, actor_from_sb3, save_actor, sha256_of
 from autoscoop.core.version import __version__
+from autoscoop.training.model_state import BUFFER_FILE, TENSORS_FILE, load_model_state, save_model_state
 
 
 def save_safe_actor(model: Any, path: Path, metadata: dict[str, Any]) -> bool:
@@ -40,17 +46,36 @@ def actor_meta(info: dict[str, Any], run_dir: Path) -> dict[str, Any]:
             "autoscoop_version": __version__, "run": run_dir.name}
 
 
-def save_checkpoint(model: Any, run_dir: Path, episodes_done: int) -> None:
-    """Write model, replay buffer and progress to ``checkpoint/``, atomically (a crash keeps the last one)."""
+CHECKPOINT_FORMAT = "autoscoop-checkpoint/2"
+"""``state.json``'s ``format``: tensors in safetensors, the replay buffer in ``.npz``, the rest JSON; no pickle."""
+CHECKPOINT_DIRS = ("checkpoint", "checkpoint.tmp", "checkpoint.old")
+"""the checkpoint, the next one being written, the previous one while they are swapped (a kill -9 can leave any)."""
+BEST_FILES = ("policy.zip", "policy.safetensors", "policy.json")
+"""the best-evaluated policy so far, copied into the checkpoint's ``best/`` (a resumed run starts from it)."""
+BOOKKEEPING = ("episodes_done", "evaluations_done", "wall_s", "best_score", "best_episode")
+"""what a checkpoint records of the run: episodes and evaluations done (rows of ``episodes.csv`` and
+``evaluations.csv``), wall time so far (s), the best evaluation score and its episode (``None`` before one)."""
+RUN_OUTPUTS = ("episodes.csv", "evaluations.csv", *BEST_FILES, "last.safetensors", "last.json", "learning_curve.png",
+               "evaluated", "tb", *CHECKPOINT_DIRS)
+"""what training writes into a run directory after its settings (cleared when a run restarts from episode 0)."""
+
+
+def save_checkpoint(model: Any, run_dir: Path, bookkeeping: dict[str, Any], algo: str) -> None:
+    """Write the model, its replay buffer, the best policy so far and ``bookkeeping`` (:data:`BOOKKEEPING`) to
+    ``checkpoint/``, atomically: a crash, kill -9 included, keeps the last complete one."""
     tmp = run_dir / "checkpoint.tmp"
     shutil.rmtree(tmp, ignore_errors=True)
     tmp.mkdir()
-    model.save(tmp / "model.zip")
-    if hasattr(model, "save_replay_buffer"):
-        model.save_replay_buffer(tmp / "replay_buffer.pkl")
-    (tmp / "state.json").write_text(json.dumps({"episodes_done": episodes_done,
-                                                "num_timesteps": int(model.num_timesteps),
-                                                "model_sha256": sha256_of(tmp / "model.zip")}))
+    model_state = save_model_state(model, tmp)
+    best = [name for name in BEST_FILES if (run_dir / name).is_file()]
+    if best:
+        (tmp / "best").mkdir()
+        for name in best:
+            shutil.copyfile(run_dir / name, tmp / "best" / name)
+    files = {str(path.relative_to(tmp)): sha256_of(path) for path in sorted(tmp.rglob("*")) if path.is_file()}
+    state = {"format": CHECKPOINT_FORMAT, "algo": algo, **{key: bookkeeping[key] for key in BOOKKEEPING},
+             "model": model_state, "files": files}
+    _write_json_atomically(tmp / "state.json", state)  # last: a checkpoint folder with state.json is complete
     final = run_dir / "checkpoint"
     old = run_dir / "checkpoint.old"
     shutil.rmtree(old, ignore_errors=True)
@@ -60,43 +85,173 @@ def save_checkpoint(model: Any, run_dir: Path, episodes_done: int) -> None:
     shutil.rmtree(old, ignore_errors=True)
 
 
-def read_checkpoint_state(checkpoint: Path) -> dict[str, Any]:
-    """``checkpoint/state.json`` (episodes done, timesteps), after checking ``model.zip`` against its hash.
+def _write_json_atomically(path: Path, data: dict[str, Any]) -> None:
+    tmp = path.with_name(path.name + ".tmp")
+    tmp.write_text(json.dumps(data, indent=1) + "\n")
+    os.replace(tmp, path)
+
+
+def find_checkpoint(run_dir: Path, algo: str) -> tuple[Path, dict[str, Any]] | None:
+    """The newest complete checkpoint of ``run_dir`` (of :data:`CHECKPOINT_DIRS`, the one with the most
+    episodes) and its checked ``state.json``; ``None`` where there is none.
 
     Raises:
-        ValueError: ``model.zip`` does not match the SHA-256 recorded beside it.
+        ValueError: a checkpoint that cannot be vouched for (:func:`read_checkpoint_state`).
     """
-    state = json.loads((checkpoint / "state.json").read_text())
-    if sha256_of(checkpoint / "model.zip") != state["model_sha256"]:
-        raise ValueError(f"{checkpoint / 'model.zip'} does not match its recorded hash; refusing to load it")
+    found = [(folder, read_checkpoint_state(folder, algo)) for folder in (run_dir / name for name in CHECKPOINT_DIRS)
+             if (folder / "state.json").is_file()]
+    return max(found, key=lambda item: item[1]["episodes_done"]) if found else None
+
+
+def read_checkpoint_state(checkpoint: Path, algo: str) -> dict[str, Any]:
+    """``checkpoint/state.json``, after checking that the folder holds only what autoscoop writes there, unchanged.
+
+    Nothing is loaded that could run code: a checkpoint of an older autoscoop (pickles: ``model.zip``,
+    ``replay_buffer.pkl``) and any file this version does not write are refused, not opened.
+
+    Raises:
+        ValueError: another format or algorithm, a malformed state, a file too many, missing or changed
+            (SHA-256); the message names the file.
+    """
+    path = checkpoint / "state.json"
+    try:
+        state = json.loads(path.read_text())
+    except (OSError, ValueError, RecursionError) as error:
+        raise ValueError(f"{path}: not readable as JSON ({error})") from None
+    if not isinstance(state, dict) or state.get("format") != CHECKPOINT_FORMAT:
+        found = state.get("format") if isinstance(state, dict) else None
+        raise ValueError(f"{path}: checkpoint format {found!r}, expected {CHECKPOINT_FORMAT!r}. Older checkpoints keep "
+                         f"the model and replay buffer as pickles, which resume does not load: remove {checkpoint} "
+                         "to restart the run from episode 0, or start a new run")
+    if state.get("algo") != algo:
+        raise ValueError(f"{path}: a checkpoint of {state.get('algo')!r}, the run trains {algo!r}")
+    _check_bookkeeping(state, path)
+    _check_files(checkpoint, state.get("files"))
     return state
 
 
-def load_checkpoint(model_cls: Any, checkpoint: Path, env: Any) -> Any:
-    """The model of ``checkpoint/`` on ``env``, with its replay buffer where one was saved.
+def _check_bookkeeping(state: dict[str, Any], path: Path) -> None:
+    counts = [state.get(key) for key in ("episodes_done", "evaluations_done")]
+    if not all(_is_whole(n) and n >= 0 for n in counts):
+        raise ValueError(f"{path}: episodes_done and evaluations_done must be whole numbers, 0 or more; got {counts}")
+    wall_s, best_score, best_episode = state.get("wall_s"), state.get("best_score"), state.get("best_episode")
+    if not (_is_number(wall_s) and wall_s >= 0):
+        raise ValueError(f"{path}: wall_s must be a number of seconds, 0 or more; got {wall_s!r}")
+    if best_score is None and best_episode is None:
+        return
+    if not (_is_number(best_score) and _is_whole(best_episode)):
+        raise ValueError(f"{path}: best_score and best_episode must be a number and a whole number (both null "
+                         f"before the first evaluation); got {best_score!r} and {best_episode!r}")
 
-    Check the zip first (:func:`read_checkpoint_state`): loading it runs pickle.
+
+def _is_whole(value: Any) -> bool:
+    return isinstance(value, int) and not isinstance(value, bool)
+
+
+def _is_number(value: Any) -> bool:
+    return isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
+
+
+def _check_files(checkpoint: Path, files: Any) -> None:
+    if not isinstance(files, dict) or not all(isinstance(v, str) for v in files.values()):
+        raise ValueError(f"{checkpoint / 'state.json'}: 'files' must map each file to its SHA-256")
+    allowed = {TENSORS_FILE, BUFFER_FILE, *(f"best/{name}" for name in BEST_FILES)}
+    present = {str(path.relative_to(checkpoint)) for path in checkpoint.rglob("*") if not path.is_dir()}
+    present.discard("state.json")
+    for name in sorted(present):
+        if name not in allowed:
+            raise ValueError(f"{checkpoint / name}: not a file autoscoop writes in a checkpoint (it is not opened: "
+                             "resume loads no pickle); remove it, or start the run again")
+        if name not in files:
+            raise ValueError(f"{checkpoint / name}: not listed in {checkpoint / 'state.json'}; remove it, or start "
+                             "the run again")
+    for name, digest in sorted(files.items()):
+        if name not in allowed or name not in present:
+            raise ValueError(f"{checkpoint / name}: listed in state.json but missing or not expected there")
+        if sha256_of(checkpoint / name) != digest:
+            raise ValueError(f"{checkpoint / name}: does not match the SHA-256 recorded in state.json")
+    if TENSORS_FILE not in files:
+        raise ValueError(f"{checkpoint / TENSORS_FILE}: missing")
+    subfolders = sorted(p.name for p in checkpoint.iterdir() if p.is_dir() and p.name != "best")
+    if subfolders:
+        raise ValueError(f"{checkpoint / subfolders[0]}: not a folder autoscoop writes in a checkpoint")
+
+
+def load_checkpoint(model: Any, checkpoint: Path, state: dict[str, Any]) -> None:
+    """Put the tensors, counters, noise and replay buffer of ``checkpoint/`` into ``model`` (built afresh from
+    the run's settings; ``state`` from :func:`read_checkpoint_state`). Reads safetensors, ``.npz`` without
+    pickle and JSON only.
+
+    Raises:
+        ValueError: the files do not fit the model (the message names the file).
     """
-    model = model_cls.load(checkpoint / "model.zip", env=env, device="cpu")
-    if (checkpoint / "replay_buffer.pkl").exists() and hasattr(model, "load_replay_buffer"):
-        model.load_replay_buffer(checkpoint / "replay_buffer.pkl")
-    return model
+    load_model_state(model, checkpoint, state["model"])
 
 
-def truncate_csv(path: Path, episodes: int) -> None:
-    """Keep the header and the first ``episodes`` rows (what the checkpoint had seen)."""
+def restore_to_checkpoint(run_dir: Path, checkpoint: Path, state: dict[str, Any]) -> None:
+    """Make ``run_dir``'s files what they were at ``checkpoint``: the CSVs cut to its rows, the best policy its
+    copy, the evaluated actors and ``last.*`` of later episodes gone (they are made again)."""
+    kept = {path: _first_rows(path, rows) for path, rows in ((run_dir / "episodes.csv", state["episodes_done"]),
+                                                            (run_dir / "evaluations.csv", state["evaluations_done"]))}
+    for path, text in kept.items():  # after both are checked
+        if text is not None:
+            path.write_text(text)
+    for name in BEST_FILES:
+        kept = checkpoint / "best" / name
+        if kept.is_file():
+            tmp = run_dir / (name + ".tmp")
+            shutil.copyfile(kept, tmp)
+            os.replace(tmp, run_dir / name)
+        else:
+            (run_dir / name).unlink(missing_ok=True)
+    drop_evaluated_after(run_dir / "evaluated", state["episodes_done"])
+    for name in ("last.safetensors", "last.json", "learning_curve.png"):
+        (run_dir / name).unlink(missing_ok=True)
+
+
+def clear_run_outputs(run_dir: Path) -> None:
+    """Remove what training wrote into ``run_dir`` (:data:`RUN_OUTPUTS`), keeping its settings and ``run.json``."""
+    for name in RUN_OUTPUTS:
+        path = run_dir / name
+        if path.is_dir():
+            shutil.rmtree(path)
+        else:
+            path.unlink(missing_ok=True)
+
+
+def remove_checkpoints(run_dir: Path) -> None:
+    """Remove every checkpoint folder (:data:`CHECKPOINT_DIRS`) of a finished run."""
+    for name in CHECKPOINT_DIRS:
+        shutil.rmtree(run_dir / name, ignore_errors=True)
+
+
+def _first_rows(path: Path, rows: int) -> str | None:
+    """The header and first ``rows`` rows of CSV ``path`` (what the checkpoint had seen); ``None`` where the
+    file and the rows are both absent.
+
+    Raises:
+        ValueError: the file holds fewer complete rows than that (it was cut or replaced since).
+    """
     if not path.exists():
-        return
+        if rows:
+            raise ValueError(f"{path}: missing, the checkpoint saw {rows} rows of it; cannot resume consistently")
+        return None
     lines = path.read_text().splitlines(keepends=True)
-    path.write_text("".join(lines[:1 + episodes]))
+    complete = [line for line in lines[1:1 + rows] if line.endswith("\n")]
+    if len(complete) < rows:
+        raise ValueError(f"{path}: holds {len(complete)} complete rows, the checkpoint saw {rows}; "
+                         "cannot resume consistently")
+    return "".join(lines[:1 + rows])
 
 
-def drop_evaluations_after(path: Path, episodes: int) -> None:
-    """Keep the header and the evaluations made at or before ``episodes`` (what the checkpoint had seen)."""
-    if not path.exists():
+def drop_evaluated_after(folder: Path, episodes: int) -> None:
+    """Remove the evaluated actors (``episode_NNNNN.*``) of episodes after ``episodes`` (they are evaluated again)."""
+    if not folder.is_dir():
         return
-    lines = path.read_text().splitlines(keepends=True)
-    path.write_text("".join(lines[:1] + [line for line in lines[1:] if int(line.split(",", 1)[0]) <= episodes]))
+    for path in folder.glob("episode_*.*"):
+        number = path.stem.removeprefix("episode_")
+        if number.isdigit() and int(number) > episodes:
+            path.unlink()
 
 
 def write_run_json(run_dir: Path, info: dict[str, Any]) -> None:

@@ -8,7 +8,7 @@ A run directory holds everything needed to repeat and to use the run:
 | config.yaml, hyperparams.yaml | the environment config and the algorithm's settings |
 | episodes.csv | one row per training episode: reward, fill factor, cycle time, success, steps |
 | tb/ | TensorBoard logs |
-| checkpoint/ | model and replay buffer every ``checkpoint_every`` episodes (for ``--resume``) |
+| checkpoint/ | every ``checkpoint_every`` episodes (for ``--resume``): the model's tensors (safetensors), replay buffer (npz), best policy so far and the run's bookkeeping (JSON); no pickle |
 | evaluated/ | the actor (safetensors) at each periodic evaluation: ``episode_NNNNN.safetensors`` |
 | policy.zip | the best SB3 model by periodic evaluation (pickle inside: load only what you trust) |
 | policy.safetensors, policy.json | that policy's actor in the safe format, with its hash |
@@ -25,7 +25,6 @@ evaluated actors and ``policy.*`` as training goes, :mod:`autoscoop.training.che
 
 from __future__ import annotations
 
-import shutil
 import sys
 import time
 from dataclasses import dataclass, field
@@ -44,15 +43,16 @@ from autoscoop.core.version import __version__
 from autoscoop.training.callbacks import EpisodeLogger, PolicyEvaluator
 from autoscoop.training.checkpoints import (
     actor_meta,
-    drop_evaluations_after,
+    clear_run_outputs,
+    find_checkpoint,
     init_model_zip,
     load_checkpoint,
     load_init_weights,
     lock_run_dir,
-    read_checkpoint_state,
     read_run_json,
+    remove_checkpoints,
+    restore_to_checkpoint,
     save_safe_actor,
-    truncate_csv,
     write_run_json,
 )
 from autoscoop.training.factories import make_noise, make_policy, make_vec_env
@@ -134,7 +134,8 @@ def _start(args: TrainArgs, run_dir: Path, config: ScoopConfig, spec: dict[str, 
 
 
 def resume(run_dir: Path, progress: bool = True) -> Path:
-    """Continue an interrupted run from its last checkpoint (episodes after it are redone)."""
+    """Continue an interrupted run from its last checkpoint (episodes after it are redone; without a checkpoint
+    the run starts again from episode 0). The resumed run's files are those an uninterrupted run writes."""
     run_dir = Path(run_dir)
     read_run_json(run_dir)  # a run directory, before a lock file is put in it
     with lock_run_dir(run_dir):
@@ -153,32 +154,52 @@ def _continue(run_dir: Path, progress: bool) -> Path:
                          "run.json, config.yaml and hyperparams.yaml)")
     spec = yaml.safe_load((run_dir / "hyperparams.yaml").read_text())
     config = from_dict(yaml.safe_load((run_dir / "config.yaml").read_text()))
-    checkpoint = run_dir / "checkpoint"
-    if not (checkpoint / "state.json").exists():
-        shutil.rmtree(checkpoint, ignore_errors=True)
-        (run_dir / "episodes.csv").unlink(missing_ok=True)
+    found = find_checkpoint(run_dir, info["algo"])
+    if found is None:  # killed before its first checkpoint: start again, as if new
+        clear_run_outputs(run_dir)
+        _set_bookkeeping(info, wall_s=0.0, best_score=None, best_episode=None)
+        write_run_json(run_dir, info)
         return _run(run_dir, config, spec, info, done=0, model=None, progress=progress)
-    state = read_checkpoint_state(checkpoint)
-    truncate_csv(run_dir / "episodes.csv", state["episodes_done"])
-    drop_evaluations_after(run_dir / "evaluations.csv", state["episodes_done"])  # they are run again
-    env = make_vec_env(config, info["n_envs"], info["seed"] + state["episodes_done"])
-    model = load_checkpoint(ALGORITHMS[info["algo"]], checkpoint, env)
-    if model.action_noise is None and spec.get("noise"):
-        model.action_noise = make_noise(spec, info["n_envs"])
-    return _run(run_dir, config, spec, info, done=state["episodes_done"], model=model, progress=progress)
+    checkpoint, state = found
+    done = state["episodes_done"]
+    env = make_vec_env(config, info["n_envs"], info["seed"] + done)
+    model = _build_model(run_dir, env, spec, info, seed=info["seed"] + done)
+    try:
+        load_checkpoint(model, checkpoint, state)
+        restore_to_checkpoint(run_dir, checkpoint, state)  # files last: a refused checkpoint changes none
+    except ValueError:
+        env.close()
+        raise
+    _set_bookkeeping(info, state["wall_s"], state["best_score"], state["best_episode"])
+    write_run_json(run_dir, info)
+    return _run(run_dir, config, spec, info, done=done, model=model, progress=progress,
+                evaluations_done=state["evaluations_done"])
 
 
-def _new_model(run_dir: Path, config: ScoopConfig, spec: dict[str, Any], info: dict[str, Any]) -> Any:
-    """A fresh model on new environments: the initial run's weights when fine-tuning, demonstrations when asked."""
-    n_envs, seed = info["n_envs"], info["seed"]
-    env = make_vec_env(config, n_envs, seed)
+def _set_bookkeeping(info: dict[str, Any], wall_s: float, best_score: float | None, best_episode: int | None) -> None:
+    """Set ``run.json``'s wall time (s) and best evaluation to a checkpoint's (no best: the keys go, as in a new run)."""
+    info["wall_s"] = wall_s
+    info.pop("best_score", None)
+    info.pop("best_episode", None)
+    if best_score is not None:
+        info.update(best_score=best_score, best_episode=best_episode)
+
+
+def _build_model(run_dir: Path, env: Any, spec: dict[str, Any], info: dict[str, Any], seed: int) -> Any:
+    """The run's model, with fresh weights, on ``env``: the algorithm, networks, noise and settings of its YAML."""
     policy, policy_kwargs = make_policy(info["algo"], spec)
     kwargs = dict(spec.get("hyperparams") or {})
     algo_cls = ALGORITHMS[info["algo"]]
     if algo_cls in (DDPG, TD3):
-        kwargs["action_noise"] = make_noise(spec, n_envs)
-    model = algo_cls(policy, env, seed=seed, device="cpu", tensorboard_log=str(run_dir / "tb"),
-                     policy_kwargs=policy_kwargs or None, verbose=0, **kwargs)
+        kwargs["action_noise"] = make_noise(spec, info["n_envs"])
+    return algo_cls(policy, env, seed=seed, device="cpu", tensorboard_log=str(run_dir / "tb"),
+                    policy_kwargs=policy_kwargs or None, verbose=0, **kwargs)
+
+
+def _new_model(run_dir: Path, config: ScoopConfig, spec: dict[str, Any], info: dict[str, Any]) -> Any:
+    """A fresh model on new environments: the initial run's weights when fine-tuning, demonstrations when asked."""
+    env = make_vec_env(config, info["n_envs"], info["seed"])
+    model = _build_model(run_dir, env, spec, info, seed=info["seed"])
     if info.get("init_from"):
         load_init_weights(model, Path(info["init_from"]), info["init_sha256"])
     if info.get("demo_episodes"):
@@ -188,17 +209,16 @@ def _new_model(run_dir: Path, config: ScoopConfig, spec: dict[str, Any], info: d
 
 
 def _run(run_dir: Path, config: ScoopConfig, spec: dict[str, Any], info: dict[str, Any], done: int,
-         model: Any, progress: bool) -> Path:
+         model: Any, progress: bool, evaluations_done: int = 0) -> Path:
+    """Train from episode ``done`` to the end (``evaluations_done`` evaluations already listed), then write the
+    final files; ``model`` ``None``: a new one."""
     torch.set_num_threads(1)
     n_envs, episodes = info["n_envs"], info["episodes"]
     if model is None:
         model = _new_model(run_dir, config, spec, info)
-    else:
-        model.tensorboard_log = str(run_dir / "tb")
-    started = time.time()
-    evaluator = PolicyEvaluator(run_dir, config, info.get("eval_every", 50), info.get("eval_episodes", 10), info) \
-        if info.get("eval_every", 50) > 0 else None
-    logger = EpisodeLogger(run_dir, episodes, done, spec, info["checkpoint_every"], progress, evaluator,
+    evaluator = PolicyEvaluator(run_dir, config, info.get("eval_every", 50), info.get("eval_episodes", 10), info,
+                                done=evaluations_done) if info.get("eval_every", 50) > 0 else None
+    logger = EpisodeLogger(run_dir, episodes, done, info, spec, info["checkpoint_every"], progress, evaluator,
                            config.env.control_period_s, evaluate_at_start=bool(info.get("init_from")) and done == 0)
     max_steps = config.max_episode_steps
     try:
@@ -208,7 +228,7 @@ def _run(run_dir: Path, config: ScoopConfig, spec: dict[str, Any], info: dict[st
         model.get_env().close()
         if evaluator is not None:
             evaluator.close()
-        info["wall_s"] = round(info.get("wall_s", 0.0) + time.time() - started, 1)
+        info["wall_s"] = round(logger.wall_s(), 1)
         write_run_json(run_dir, info)
     save_safe_actor(model, run_dir / "last.safetensors", actor_meta(info, run_dir))
     if not (run_dir / "policy.zip").exists():  # no evaluation ran: the last policy is the policy
@@ -216,7 +236,7 @@ def _run(run_dir: Path, config: ScoopConfig, spec: dict[str, Any], info: dict[st
         save_safe_actor(model, run_dir / "policy.safetensors", actor_meta(info, run_dir))
     info.update(status="finished", policy_zip_sha256=sha256_of(run_dir / "policy.zip"))
     write_run_json(run_dir, info)
-    shutil.rmtree(run_dir / "checkpoint", ignore_errors=True)
+    remove_checkpoints(run_dir)
     try:
         plot_learning_curve(run_dir / "episodes.csv", run_dir / "learning_curve.png")
     except ImportError:  # matplotlib missing: the CSV holds the same numbers
