@@ -344,3 +344,51 @@ def test_resume_of_a_run_json_alone_names_the_missing_files(tmp_path, capsys):
     err = capsys.readouterr().err
     assert str(run_dir / "hyperparams.yaml") in err and str(run_dir / "config.yaml") not in err
     assert _lock_is_free(run_dir)  # released after the refusal
+
+
+def test_recipes_lay_over_the_algorithms_yaml():
+    from autoscoop.training.settings import config_at, curriculum_stages, load_hyperparams, load_recipe
+
+    paper = load_recipe("ddpg", "paper")
+    assert {k: v for k, v in paper.items() if k not in ("episodes", "recipe")} == load_hyperparams("ddpg")
+    robot = load_recipe("td3", "robot")
+    assert robot["algo"] == "td3" and robot["demo_episodes"] > 0 and robot["env"]["reward.c_w"] == 50
+    stages = curriculum_stages(robot)
+    assert stages and all(key.startswith("randomize.") for _, keys in stages for key in keys)
+    base = ScoopConfig()
+    assert config_at(base, robot, stages[0][0] - 1) == base
+    assert config_at(base, robot, stages[0][0]).randomize.preset == "robot"
+    with pytest.raises(ValueError, match="--recipe 'fast'"):
+        load_recipe("ddpg", "fast")
+    with pytest.raises(ValueError, match="only randomize"):
+        curriculum_stages({"curriculum": [{"episode": 3, "set": {"pile.angle_deg": 25}}]})
+
+
+def test_a_curriculum_switches_the_training_and_evaluation_world(tmp_path, monkeypatch):
+    """After the stage's episode the environments draw randomised worlds and the kept policy is chosen again."""
+    from autoscoop.training import run as train_mod
+    from autoscoop.training import settings
+
+    stage = {"episode": 3, "set": {"randomize.preset": "robot"}}
+    original = settings.load_recipe
+    monkeypatch.setattr(train_mod, "load_recipe",
+                        lambda algo, recipe: {**original(algo, "paper"), "curriculum": [stage]})
+    seen: list[dict] = []
+    from autoscoop.training.callbacks import EpisodeLogger
+
+    end = EpisodeLogger.end_episode
+
+    def watch(self, env_index, info):
+        seen.append(dict(info.get("world") or {}))
+        end(self, env_index, info)
+
+    monkeypatch.setattr(EpisodeLogger, "end_episode", watch)
+    out = tmp_path / "run"
+    train_mod.train(train_mod.TrainArgs(episodes=6, out=out, progress=False, overrides={"pile.variants": 2},
+                                        eval_every=3, eval_episodes=1, checkpoint_every=10))
+    # each environment had already begun its next episode (SB3 resets at once): episodes 5-6 in drawn worlds
+    assert [bool(world) for world in seen] == [False] * 4 + [True] * 2
+    rows = list(csv.DictReader(open(out / "evaluations.csv")))
+    assert [row["episode"] for row in rows] == ["3", "6"]
+    info = json.loads((out / "run.json").read_text())
+    assert info["best_episode"] == 6  # chosen again in the randomised world, whatever episode 3 scored

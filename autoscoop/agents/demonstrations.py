@@ -37,6 +37,7 @@ def add_scripted_demonstrations(replay_buffer: Any, config: ScoopConfig, episode
     """
     if episodes < 0:
         raise ValueError(f"demonstration episodes = {episodes}; must be >= 0")
+    config = demonstration_config(config)
     env = make_scoop_env(config)
     controller = _ClippedFloat32(heuristic_for(config))
     pending: list[tuple[np.ndarray, np.ndarray, np.ndarray, float, bool]] = []
@@ -58,6 +59,19 @@ def add_scripted_demonstrations(replay_buffer: Any, config: ScoopConfig, episode
     finally:
         env.close()
     return added
+
+
+def demonstration_config(config: ScoopConfig) -> ScoopConfig:
+    """The world the scripted scoops are run in: the training world, with the counted mass in the state.
+
+    The scripted controller ends its fill phase on the state's w; with the torque estimate (offset,
+    noisy, late) it lifts early or late. Its demonstrations show how to scoop, in every drawn world
+    of a ``randomize`` section, but read the mass as the counting sensor does.
+    """
+    config = config.replace(env=config.env.replace(mass_source="truth"))
+    if config.randomize.active:
+        config = config.replace(randomize=config.randomize.replace(torque_source_probability=(0.0,)))
+    return config
 
 
 class _ClippedFloat32:

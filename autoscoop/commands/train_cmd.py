@@ -9,11 +9,11 @@ from autoscoop.commands import add_config_args, seed_int
 from autoscoop.core.config import overrides_from_yaml, parse_set_args
 
 DEFAULT_EPISODES = 800
-"""training episodes of a new run when ``--episodes`` is not given (the paper's)."""
-DEFAULTS = {"algo": "ddpg", "seed": 0, "n_envs": 1, "checkpoint_every": 50, "eval_every": 50, "eval_episodes": 10}
+"""training episodes of a new run when ``--episodes`` is not given and its recipe names none (the paper's)."""
+DEFAULTS = {"algo": "ddpg", "recipe": "paper", "seed": 0, "n_envs": 1, "checkpoint_every": 50, "eval_every": 50, "eval_episodes": 10}
 """a new run's settings where the options are not given (episodes: :data:`DEFAULT_EPISODES`). The options
 default to ``None`` so that ``--resume`` can tell what was given."""
-RECORDED = {"algo": "--algo", "seed": "--seed", "n_envs": "--n-envs", "checkpoint_every": "--checkpoint-every",
+RECORDED = {"algo": "--algo", "recipe": "--recipe", "seed": "--seed", "n_envs": "--n-envs", "checkpoint_every": "--checkpoint-every",
             "eval_every": "--eval-every", "eval_episodes": "--eval-episodes", "demo_episodes": "--demo-episodes"}
 """options whose value a run records in ``run.json`` (key: option): ``--resume`` takes them only with that value."""
 NOT_WITH_RESUME = {"out": "--out", "init": "--init", "trust": "--trust", "config": "--config", "overrides": "--set",
@@ -26,6 +26,10 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     parser = subparsers.add_parser("train", help="train a controller", description=__doc__)
     parser.add_argument("--algo", choices=["ddpg", "td3", "sac", "ppo"],
                         help="algorithm (default ddpg, the paper's); settings in autoscoop/training/hyperparams/ALGO.yaml")
+    parser.add_argument("--recipe", choices=["paper", "robot"],
+                        help="paper (default): the paper's DDPG in its world, 800 episodes; robot: the shipped "
+                             "default's, in the randomised robot world with scripted demonstrations "
+                             "(autoscoop/training/recipes/NAME.yaml, laid over the algorithm's YAML)")
     parser.add_argument("--episodes", type=int, default=None,
                         help=f"training episodes (default {DEFAULT_EPISODES}, as in the paper; "
                              "not with --resume: a resumed run keeps its recorded count)")
@@ -66,7 +70,9 @@ def run(args: argparse.Namespace) -> int:
             if getattr(args, name) is None:
                 setattr(args, name, value)
         if args.episodes is None:
-            args.episodes = DEFAULT_EPISODES
+            from autoscoop.training.settings import load_recipe  # noqa: PLC0415 - torch is slow to import
+
+            args.episodes = int(load_recipe(args.algo, args.recipe).get("episodes", DEFAULT_EPISODES))
         if args.episodes < 1 or args.n_envs < 1 or args.checkpoint_every < 1 or args.eval_episodes < 1:
             raise ValueError("--episodes, --n-envs, --checkpoint-every and --eval-episodes must be at least 1")
         if args.eval_every < 0:
@@ -80,7 +86,8 @@ def run(args: argparse.Namespace) -> int:
                                   overrides=flat, out=args.out, checkpoint_every=args.checkpoint_every,
                                   eval_every=args.eval_every, eval_episodes=args.eval_episodes,
                                   progress=not args.no_progress, init_from=args.init, trust=args.trust,
-                                  hyper=parse_set_args(args.hyper), demo_episodes=args.demo_episodes))
+                                  hyper=parse_set_args(args.hyper), demo_episodes=args.demo_episodes,
+                                  recipe=args.recipe))
     print(f"run directory: {run_dir}")
     return 0
 

@@ -11,7 +11,7 @@ import numpy as np
 from gymnasium.wrappers import TimeLimit
 
 from autoscoop.core import state as state_mod
-from autoscoop.core.config import ScoopConfig
+from autoscoop.core.config import RandomizeConfig, ScoopConfig
 from autoscoop.core.reward import is_penetrating, scoop_reward
 from autoscoop.core.sensing import RawReadings, SensorNoise, add_noise, delay_steps
 from autoscoop.core.state import CommandLimits, Measurements
@@ -208,6 +208,10 @@ class ScoopEnv(gym.Env):
         info.update(terms)
         terminated = info["reached"]  # the scoop ends at the terminal point, loaded or not
         return obs, float(reward), bool(terminated), False, info
+
+    def set_randomize(self, randomize: RandomizeConfig) -> None:
+        """Use another ``randomize`` section from the next reset on (a training curriculum widens the world)."""
+        self.config = self.config.replace(randomize=randomize)
 
     def render(self) -> np.ndarray | None:
         if self.render_mode != "rgb_array":

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import csv
 import math
+import sys
 import time
 from pathlib import Path
 from typing import Any
@@ -44,12 +45,17 @@ class EpisodeLogger(BaseCallback):
         evaluator: the periodic evaluation, or ``None``.
         control_period_s: the environment's control period (an episode's steps from its elapsed time).
         evaluate_at_start: evaluate the starting policy before learning (fine-tuning: it is the bar).
+        worlds: a curriculum's later worlds, by the episode after which each begins: the training
+            environments and the periodic evaluation switch to it there, and the best policy is chosen
+            again in it (a score in an easier world is no bar).
     """
 
     def __init__(self, run_dir: Path, episodes: int, done: int, info: dict[str, Any], spec: dict[str, Any],
                  checkpoint_every: int, progress: bool, evaluator: PolicyEvaluator | None = None,
-                 control_period_s: float = 0.25, evaluate_at_start: bool = False) -> None:
+                 control_period_s: float = 0.25, evaluate_at_start: bool = False,
+                 worlds: dict[int, ScoopConfig] | None = None) -> None:
         super().__init__()
+        self.worlds = dict(worlds or {})
         self.evaluate_at_start = evaluate_at_start
         self.control_period_s = control_period_s
         self.run_dir, self.episodes, self.done, self.info = run_dir, episodes, done, info
@@ -110,8 +116,19 @@ class EpisodeLogger(BaseCallback):
         self._update_noise()
         if self.evaluator is not None and (self.done % self.evaluator.every == 0 or self.done == self.episodes):
             self.evaluator.evaluate(self.model, self.done, self.logger)
+        if self.done in self.worlds and self.done < self.episodes:
+            self.enter_world(self.worlds[self.done])
         if self.done % self.checkpoint_every == 0 and self.done < self.episodes:
             self._checkpoint_due = True
+
+    def enter_world(self, config: ScoopConfig) -> None:
+        """A curriculum stage begins: evaluate in ``config``'s world from now, train in it from each environment's
+        next reset (an environment has begun its next episode already when one ends: one episode later)."""
+        self.model.get_env().env_method("set_randomize", config.randomize)
+        if self.evaluator is not None:
+            self.evaluator.enter_world(config)
+        given = {key: value for key, value in config.randomize.to_dict().items() if value not in ([], "none")}
+        print(f"curriculum: after episode {self.done}, randomize {given}", file=sys.stderr)
 
     def wall_s(self) -> float:
         """Seconds of wall time the run has taken: this process's part and the parts before a resume."""
@@ -140,8 +157,8 @@ class EpisodeLogger(BaseCallback):
 class PolicyEvaluator:
     """Evaluates the deterministic policy every ``every`` episodes and keeps the best as ``policy.*``.
 
-    The score is the delivered fill: the fill factor of successful episodes, zero for failures
-    (what a loader is for). Seeds are fixed, so every evaluation sees the same piles. The kept policy
+    The score is the delivered fill: the fill factor of successful episodes (up to 1: mass above the
+    rated load delivers no more, as the reward pays no more), zero for failures (what a loader is for). Seeds are fixed, so every evaluation sees the same piles. The kept policy
     is replaced only by a strictly better score (the best so far is ``info["best_score"]``, -1 before any).
 
     Args:
@@ -161,6 +178,14 @@ class PolicyEvaluator:
         if path.stat().st_size == 0:
             self.csv.writeheader()
 
+    def enter_world(self, config: ScoopConfig) -> None:
+        """Evaluate in ``config``'s world from now on; the next evaluation's policy is kept whatever its score."""
+        self.env.close()
+        self.env = make_scoop_env(config)
+        self.best = -1.0
+        self.info.pop("best_score", None)
+        self.info.pop("best_episode", None)
+
     def evaluate(self, model: Any, episode: int, logger: Any) -> float:
         """Run the evaluation; save the policy if it is the best so far; return its score."""
         policy = SB3Policy(model, name="training")
@@ -168,7 +193,7 @@ class PolicyEvaluator:
         fills = [r.fill_factor for r in results]
         successes = [r.success for r in results]
         cycles = [r.cycle_time_s for r in results if r.success]
-        score = float(np.mean([f if s else 0.0 for f, s in zip(fills, successes)]))
+        score = float(np.mean([min(f, 1.0) if s else 0.0 for f, s in zip(fills, successes)]))  # capped as the reward is
         row = {"episode": episode, "delivered_fill": round(score, 4), "fill_factor": round(float(np.mean(fills)), 4),
                "success": round(float(np.mean(successes)), 3),
                "cycle_time_s": round(float(np.mean(cycles)), 3) if cycles else math.nan}

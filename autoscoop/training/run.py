@@ -57,7 +57,7 @@ from autoscoop.training.checkpoints import (
 )
 from autoscoop.training.factories import make_noise, make_policy, make_vec_env
 from autoscoop.training.learning_curve import plot_learning_curve
-from autoscoop.training.settings import load_hyperparams, with_hyper_overrides
+from autoscoop.training.settings import config_at, curriculum_stages, load_recipe, with_hyper_overrides
 
 
 @dataclass
@@ -93,7 +93,9 @@ class TrainArgs:
     :func:`autoscoop.training.settings.with_hyper_overrides`)."""
     demo_episodes: int | None = None
     """scripted scoops put in the replay buffer before learning (off-policy algorithms only);
-    ``None``: the algorithm's YAML says (``demo_episodes``, 0 if absent)."""
+    ``None``: the recipe or the algorithm's YAML says (``demo_episodes``, 0 if absent)."""
+    recipe: str = "paper"
+    """``paper`` or ``robot``: a named recipe laid over the algorithm's YAML (autoscoop/training/recipes/)."""
 
 
 def _default_run_dir(args: TrainArgs) -> Path:
@@ -102,11 +104,12 @@ def _default_run_dir(args: TrainArgs) -> Path:
 
 def train(args: TrainArgs) -> Path:
     """Train from scratch into a new run directory; return it."""
-    spec = with_hyper_overrides(load_hyperparams(args.algo), args.hyper)
+    spec = with_hyper_overrides(load_recipe(args.algo, args.recipe), args.hyper)
     demos = int(spec.get("demo_episodes", 0)) if args.demo_episodes is None else args.demo_episodes
     if demos and ALGORITHMS[args.algo] is PPO:
         raise ValueError("--demo-episodes needs an off-policy algorithm (ddpg, td3, sac); ppo has no replay buffer")
     config = ScoopConfig().with_overrides({**(spec.get("env") or {}), **args.overrides})
+    config_at(config, spec, args.episodes)  # a curriculum's stages are checked before anything starts
     init_zip = init_model_zip(args.init_from, args.algo, args.trust) if args.init_from else None
     run_dir = Path(args.out) if args.out else _default_run_dir(args)
     run_dir.mkdir(parents=True, exist_ok=True)
@@ -122,7 +125,8 @@ def _start(args: TrainArgs, run_dir: Path, config: ScoopConfig, spec: dict[str, 
     """Write a new run's files and train it (under the run directory's lock)."""
     save_yaml(config, run_dir / "config.yaml")
     (run_dir / "hyperparams.yaml").write_text(yaml.safe_dump(spec, sort_keys=False))
-    info = {"algo": args.algo, "seed": args.seed, "episodes": args.episodes, "n_envs": args.n_envs,
+    info = {"algo": args.algo, "recipe": args.recipe, "seed": args.seed, "episodes": args.episodes,
+            "n_envs": args.n_envs,
             "autoscoop_version": __version__, "command": " ".join(sys.argv), "torch": torch.__version__,
             "checkpoint_every": args.checkpoint_every, "eval_every": args.eval_every,
             "eval_episodes": args.eval_episodes, "demo_episodes": demos,
@@ -162,7 +166,7 @@ def _continue(run_dir: Path, progress: bool) -> Path:
         return _run(run_dir, config, spec, info, done=0, model=None, progress=progress)
     checkpoint, state = found
     done = state["episodes_done"]
-    env = make_vec_env(config, info["n_envs"], info["seed"] + done)
+    env = make_vec_env(config_at(config, spec, done), info["n_envs"], info["seed"] + done)
     model = _build_model(run_dir, env, spec, info, seed=info["seed"] + done)
     try:
         load_checkpoint(model, checkpoint, state)
@@ -216,10 +220,13 @@ def _run(run_dir: Path, config: ScoopConfig, spec: dict[str, Any], info: dict[st
     n_envs, episodes = info["n_envs"], info["episodes"]
     if model is None:
         model = _new_model(run_dir, config, spec, info)
-    evaluator = PolicyEvaluator(run_dir, config, info.get("eval_every", 50), info.get("eval_episodes", 10), info,
+    evaluator = PolicyEvaluator(run_dir, config_at(config, spec, done), info.get("eval_every", 50),
+                                info.get("eval_episodes", 10), info,
                                 done=evaluations_done) if info.get("eval_every", 50) > 0 else None
+    worlds = {episode: config_at(config, spec, episode) for episode, _ in curriculum_stages(spec) if episode > done}
     logger = EpisodeLogger(run_dir, episodes, done, info, spec, info["checkpoint_every"], progress, evaluator,
-                           config.env.control_period_s, evaluate_at_start=bool(info.get("init_from")) and done == 0)
+                           config.env.control_period_s, evaluate_at_start=bool(info.get("init_from")) and done == 0,
+                           worlds=worlds)
     max_steps = config.max_episode_steps
     try:
         model.learn(total_timesteps=(episodes - done + n_envs) * max_steps, callback=logger,

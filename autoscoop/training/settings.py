@@ -1,4 +1,5 @@
-"""The algorithm's settings: its YAML from ``autoscoop/training/hyperparams/`` and ``--hyper`` overrides."""
+"""The algorithm's settings: its YAML from ``autoscoop/training/hyperparams/``, a recipe from
+``autoscoop/training/recipes/`` laid over it, and ``--hyper`` overrides."""
 
 from __future__ import annotations
 
@@ -8,6 +9,7 @@ from typing import Any
 import yaml
 
 from autoscoop.agents.algorithms import ALGORITHMS
+from autoscoop.core.config import ScoopConfig
 
 
 def load_hyperparams(algo: str) -> dict[str, Any]:
@@ -16,6 +18,54 @@ def load_hyperparams(algo: str) -> dict[str, Any]:
         raise ValueError(f"--algo {algo!r} is not offered; choose one of {sorted(ALGORITHMS)}")
     text = (resources.files("autoscoop") / "training" / "hyperparams" / f"{algo}.yaml").read_text()
     return yaml.safe_load(text)
+
+
+RECIPES = ("paper", "robot")
+"""Named recipes (``autoscoop/training/recipes/NAME.yaml``): ``paper`` (the paper's DDPG in its world, 800
+episodes) and ``robot`` (the shipped ``default``'s: the ``robot`` randomised world, scripted demonstrations)."""
+
+
+def load_recipe(algo: str, recipe: str = "paper") -> dict[str, Any]:
+    """The algorithm's YAML with a recipe laid over it: the recipe's ``env`` keys are added to the
+    algorithm's, its other top-level keys (``episodes``, ``demo_episodes``) set.
+
+    Raises:
+        ValueError: an unknown algorithm or recipe, naming the ones offered.
+    """
+    if recipe not in RECIPES:
+        raise ValueError(f"--recipe {recipe!r} is not offered; choose one of {list(RECIPES)}")
+    spec = load_hyperparams(algo)
+    text = (resources.files("autoscoop") / "training" / "recipes" / f"{recipe}.yaml").read_text()
+    overlay = yaml.safe_load(text) or {}
+    env = {**(spec.get("env") or {}), **(overlay.pop("env", None) or {})}
+    return {**spec, **overlay, "env": env, "recipe": recipe}
+
+
+def curriculum_stages(spec: dict[str, Any]) -> list[tuple[int, dict[str, Any]]]:
+    """A recipe's ``curriculum``: (episode, ``randomize.*`` keys) stages, in episode order. From the end of
+    that episode on, training (and its periodic evaluation) runs in the world those keys make.
+
+    Raises:
+        ValueError: a stage without a positive ``episode``, or with keys outside ``randomize``.
+    """
+    stages = []
+    for stage in spec.get("curriculum") or []:
+        episode, keys = stage.get("episode"), dict(stage.get("set") or {})
+        if not isinstance(episode, int) or episode < 1:
+            raise ValueError(f"curriculum stage {stage!r}: 'episode' must be a whole number >= 1")
+        bad = sorted(key for key in keys if not str(key).startswith("randomize."))
+        if bad:
+            raise ValueError(f"curriculum stage at episode {episode}: only randomize.* keys can change, got {bad}")
+        stages.append((episode, keys))
+    return sorted(stages, key=lambda item: item[0])
+
+
+def config_at(config: ScoopConfig, spec: dict[str, Any], episodes_done: int) -> ScoopConfig:
+    """The training world after ``episodes_done`` episodes: ``config`` with every stage begun by then applied."""
+    for episode, keys in curriculum_stages(spec):
+        if episode <= episodes_done:
+            config = config.with_overrides(keys)
+    return config
 
 
 def with_hyper_overrides(spec: dict[str, Any], overrides: dict[str, str]) -> dict[str, Any]:
