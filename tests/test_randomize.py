@@ -54,25 +54,25 @@ CHECKS = {
     "range_noise_m": (0.01, lambda env: env.episode_config.sensor.range_noise_m == 0.01),
     "torque_noise_nm": (1.0, lambda env: env.episode_config.sensor.torque_noise_nm == 1.0),
     "prescooped_probability": (1.0, lambda env: env.world["prescooped"]
-                               and (env.sim.particle_positions[:, 0] < -3.0).sum() >= 8),
+                               and (env.sim.particle_positions[:, 0] < -3.0).sum() == 12),
 }
 
 
 def test_every_range_has_a_check():
-    assert set(CHECKS) | {"torque_offset_nm", "prescoop_depth_m"} == set(ROBOT_PRESET)
+    assert set(CHECKS) | {"torque_offset_nm", "prescoop_particles"} == set(ROBOT_PRESET)
     assert set(ROBOT_PRESET) == set(RandomizeConfig.model_fields) - {"preset"}
 
 
 @pytest.mark.parametrize("name", sorted(CHECKS))
 def test_each_randomised_quantity_changes_the_simulation(name):
     value, changed = CHECKS[name]
-    extra = {"randomize.prescoop_depth_m": 0.08} if name == "prescooped_probability" else {}
+    extra = {"randomize.prescoop_particles": 12} if name == "prescooped_probability" else {}
     env, _, info = started(**{f"randomize.{name}": value}, **extra)
     drawn = info["world"]
     assert drawn and all(key in drawn for key in ([name] if "probability" not in name else []))
     assert changed(env), f"randomize.{name} = {value} did not change the simulation: {drawn}"
     # and nothing else was drawn
-    assert set(drawn) <= {name, "torque_source", "prescooped", "prescoop_depth_m"}
+    assert set(drawn) <= {name, "torque_source", "prescooped", "prescoop_particles"}
 
 
 def test_a_torque_offset_moves_the_weighed_mass():
@@ -96,8 +96,8 @@ def test_a_torque_offset_moves_the_weighed_mass():
 
 def test_a_prescooped_face_is_cut_back():
     untouched = started()[0].sim.particle_positions
-    env, _, info = started(**{"randomize.prescooped_probability": 1.0, "randomize.prescoop_depth_m": 0.08})
-    assert info["world"]["prescoop_depth_m"] == 0.08
+    env, _, info = started(**{"randomize.prescooped_probability": 1.0, "randomize.prescoop_particles": 12})
+    assert info["world"]["prescoop_particles"] == 12
     pile = env.sim.particle_positions[env.sim.particle_positions[:, 0] > -1.0]
     assert len(pile) < len(untouched)
     assert np.sort(pile[:, 0])[:8].mean() > np.sort(untouched[:, 0])[:8].mean() + 0.03  # the toe moved back

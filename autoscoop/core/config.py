@@ -390,7 +390,7 @@ ROBOT_PRESET: dict[str, tuple[float, ...]] = {
     "range_noise_m": (0.0, 0.005),
     "torque_noise_nm": (0.0, 0.3),
     "prescooped_probability": (0.2,),
-    "prescoop_depth_m": (0.03, 0.08),
+    "prescoop_particles": (6.0, 14.0),
 }
 """The ``robot`` preset: the ranges the shipped policy is trained on (documented in docs/randomize.md)."""
 
@@ -430,7 +430,7 @@ class RandomizeConfig(ConfigModel):
     torque_noise_nm: numbers(0.0, 10.0) = _range(0.0, 10.0, "N*m", "sensor.torque_noise_nm")
     prescooped_probability: numbers(0.0, 1.0) = _probability(
         "probability that the pile was scooped once before (its face cut back as a scoop leaves it)")
-    prescoop_depth_m: numbers(0.0, 0.3) = _range(0.0, 0.3, "m", "how far behind the face the earlier scoop cut")
+    prescoop_particles: numbers(1, 100) = _range(1, 100, "-", "how many particles the earlier scoop took (the lowest of the face first)")
 
     @model_validator(mode="before")
     @classmethod

@@ -174,7 +174,7 @@ class ScoopEnv(gym.Env):
         self.sim = self._scenes[key]
         self.sim.apply_parameters(cfg)
         self.sim.reset(self.np_random, pile=cfg.pile, start_gap_m=cfg.robot.start_gap_m,
-                       prescoop_depth_m=self.world.get("prescoop_depth_m"))
+                       prescoop_particles=self.world.get("prescoop_particles"))
 
     def step(self, action: np.ndarray) -> tuple[np.ndarray, float, bool, bool, dict]:
         self._targets = state_mod.advance_targets(self._targets, action, self.limits)

@@ -38,8 +38,8 @@ def scene_path() -> str:
 
 SETTLE_EXTRA_S = 3.0
 """Longest extra time a new pile may take to come to rest after ``pile.settle_s``."""
-PRESCOOP_HEIGHT_M = 0.20
-"""An earlier scoop took particles from the face up to this height (about the bucket's opening), m."""
+PRESCOOP_HEIGHT_WEIGHT = 0.5
+"""An earlier scoop takes the face's particles in order of distance behind the face plus this times their height."""
 PARKED_X_M, PARKED_Y_M = -4.0, 3.0
 """Where particles taken by an earlier scoop rest: behind the robot and to its side, out of every reading."""
 SETTLED_BANK_SIZE = 256
@@ -159,7 +159,7 @@ class ScoopSim:
 
     # ---------------------------------------------------------------- reset and stepping
     def reset(self, rng: np.random.Generator | None = None, *, pile: PileConfig | None = None,
-              start_gap_m: float | None = None, prescoop_depth_m: float | None = None) -> None:
+              start_gap_m: float | None = None, prescoop_particles: int | None = None) -> None:
         """Start an episode: a settled pile (toe at x = 0), the robot's tip ``start_gap_m`` before it.
 
         The pile is one of ``pile.variants`` jittered layouts, each settled once (until it rests) and
@@ -172,20 +172,19 @@ class ScoopSim:
             pile: this episode's pile (a randomised world: its angle), instead of the config's; its
                 particle count and radius must be the compiled scene's.
             start_gap_m: this episode's start gap, m, instead of ``robot.start_gap_m``.
-            prescoop_depth_m: the pile was scooped once before: the particles within this distance
-                behind its face (below :data:`PRESCOOP_HEIGHT_M`) were taken away, and the rest
-                settled again (:meth:`prescoop`).
+            prescoop_particles: the pile was scooped once before: this many particles of its face were
+                taken away, the lowest first, and the rest settled again (:meth:`prescoop`).
         """
         rng = rng if rng is not None else np.random.default_rng()
         variant = int(rng.integers(self.config.pile.variants))
         self.variant = variant
         self._pile = self.pile_of_variant(variant) if pile is None else pile
-        key: tuple = (variant,) if pile is None and prescoop_depth_m is None else (
-            variant, round(self._pile.angle_deg, 3), None if prescoop_depth_m is None else round(prescoop_depth_m, 3))
+        key: tuple = (variant,) if pile is None and prescoop_particles is None else (
+            variant, round(self._pile.angle_deg, 3), prescoop_particles)
         if key not in self._settled:
             if len(self._settled) >= SETTLED_BANK_SIZE:  # forget the oldest settled pile
                 self._settled.pop(next(iter(self._settled)))
-            self._settled[key] = self._settle(variant, self._pile, prescoop_depth_m)
+            self._settled[key] = self._settle(variant, self._pile, prescoop_particles)
         mujoco.mj_copyData(self.data, self.model, self._settled[key])
         jitter = self.config.robot.start_gap_jitter_m
         if jitter > 0:
@@ -227,9 +226,9 @@ class ScoopSim:
         m.actuator_ctrlrange[self._lift_act] = [-robot.lift_speed_radps, robot.lift_speed_radps]
         m.actuator_ctrlrange[self._tilt_act] = [-robot.tilt_speed_radps, robot.tilt_speed_radps]
 
-    def _settle(self, variant: int, pile: PileConfig, prescoop_depth_m: float | None = None) -> mujoco.MjData:
+    def _settle(self, variant: int, pile: PileConfig, prescoop_particles: int | None = None) -> mujoco.MjData:
         """Build pile ``variant`` (its own jitter) of ``pile``'s angle, let it settle under gravity
-        (scooped once before, with ``prescoop_depth_m``), return the state."""
+        (scooped once before: ``prescoop_particles`` taken), return the state."""
         m, d, cfg = self.model, self.data, self.config
         mujoco.mj_resetData(m, d)
         lift, tilt = cfg.robot.start_lift_rad, cfg.robot.start_tilt_rad
@@ -240,8 +239,8 @@ class ScoopSim:
             self._place_particle(index, centre)
         mujoco.mj_forward(m, d)
         self._settle_pile(cfg.pile.settle_s)
-        if prescoop_depth_m is not None:
-            self.prescoop(pile.angle_deg, prescoop_depth_m)
+        if prescoop_particles is not None:
+            self.prescoop(pile.angle_deg, prescoop_particles)
             self._settle_pile(cfg.pile.settle_s)
         settled = mujoco.MjData(m)
         mujoco.mj_copyData(settled, m, d)
@@ -258,15 +257,18 @@ class ScoopSim:
                 break
             mujoco.mj_step(m, d)
 
-    def prescoop(self, angle_deg: float, depth_m: float) -> int:
-        """Take away what an earlier scoop took: every particle whose centre lies within ``depth_m``
-        behind the pile's face line (the slope ``angle_deg`` through the toe, one radius in) and below
-        :data:`PRESCOOP_HEIGHT_M`; they are parked at rest far behind the robot. Returns how many.
+    def prescoop(self, angle_deg: float, particles: int) -> int:
+        """Take away what an earlier scoop took: ``particles`` particles of the pile's face, those nearest
+        its toe first (the least distance behind the face line, the slope ``angle_deg`` through the toe,
+        plus half their height: a bucket cuts in low and curls up); they are parked at rest far behind the
+        robot. Returns how many were taken.
         """
         positions = self.particle_positions.copy()
         radius = self._pile.radius_m
-        behind_face = positions[:, 0] - radius - (positions[:, 2] - radius) / math.tan(math.radians(angle_deg))
-        taken = np.flatnonzero((behind_face < depth_m) & (positions[:, 2] < PRESCOOP_HEIGHT_M))
+        height = positions[:, 2] - radius
+        behind_face = positions[:, 0] - radius - height / math.tan(math.radians(angle_deg))
+        order = np.argsort(behind_face + PRESCOOP_HEIGHT_WEIGHT * height, kind="stable")
+        taken = order[:max(0, min(int(particles), self.n_particles - 1))]
         for k, index in enumerate(taken):
             self.set_particle(int(index), np.array([PARKED_X_M - 3 * radius * k, PARKED_Y_M, radius]))
         mujoco.mj_forward(self.model, self.data)

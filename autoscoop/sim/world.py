@@ -8,8 +8,8 @@ config's value and consumes no random numbers. Every drawn value is in the retur
 goes into ``info["world"]`` and the episode's record, so a failed episode can be traced to its world.
 
 Quantised draws (a bank of compiled scenes and settled piles stays small): the particle radius to
-the millimetre, the particle count to whole rows of ``pile.across``, the pile angle to 0.5 deg, the depth of an earlier
-scoop to the centimetre.
+the millimetre, the particle count to whole rows of ``pile.across``, the pile angle to 0.5 deg, what an earlier scoop took
+to whole particles.
 """
 
 from __future__ import annotations
@@ -22,7 +22,6 @@ from autoscoop.core.config import ScoopConfig
 
 ANGLE_STEP_DEG = 0.5
 RADIUS_STEP_M = 0.001
-DEPTH_STEP_M = 0.01
 
 
 def draw_world(config: ScoopConfig, rng: np.random.Generator) -> dict[str, Any]:
@@ -44,14 +43,14 @@ def draw_world(config: ScoopConfig, rng: np.random.Generator) -> dict[str, Any]:
     for name in ("pile_angle_deg", "particle_mass_kg", "particle_friction", "particle_radius_m", "n_particles",
                  "start_gap_m", "ground_friction", "bucket_friction", "torque_limit_scale", "actuator_speed_scale",
                  "load_cell_noise_nm", "sensor_delay_s", "joint_noise_rad", "speed_noise_mps", "range_noise_m",
-                 "torque_noise_nm", "prescoop_depth_m"):
+                 "torque_noise_nm", "prescoop_particles"):
         value = uniform(name)
         if value is not None:
             out[name] = value
     if "pile_angle_deg" in out:
         out["pile_angle_deg"] = round(out["pile_angle_deg"] / ANGLE_STEP_DEG) * ANGLE_STEP_DEG
-    if "prescoop_depth_m" in out:
-        out["prescoop_depth_m"] = round(round(out["prescoop_depth_m"] / DEPTH_STEP_M) * DEPTH_STEP_M, 6)
+    if "prescoop_particles" in out:
+        out["prescoop_particles"] = int(round(out["prescoop_particles"]))
     if "particle_radius_m" in out:
         out["particle_radius_m"] = round(round(out["particle_radius_m"] / RADIUS_STEP_M) * RADIUS_STEP_M, 6)
     if "n_particles" in out:
@@ -65,7 +64,7 @@ def draw_world(config: ScoopConfig, rng: np.random.Generator) -> dict[str, Any]:
     if "prescooped_probability" in ranges:
         out["prescooped"] = bool(rng.random() < ranges["prescooped_probability"][0])
         if not out["prescooped"]:
-            out.pop("prescoop_depth_m", None)
+            out.pop("prescoop_particles", None)
     return out
 
 
