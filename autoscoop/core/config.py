@@ -223,7 +223,7 @@ def _message(error: dict[str, Any], key: str, leaf: FieldInfo | None, item: bool
     unit, low, high = extra.get("unit", "-"), extra.get("low"), extra.get("high")
     span = f"[{low}, {high}]"
     in_range = f", each in {span} {unit}" if low is not None else ""
-    shown = float(value) if type(value) is int and leaf.annotation is not int else value  # as a float field holds it
+    shown = _as_float(value) if type(value) is int and leaf.annotation is not int else value  # as a float field holds it
     choices = _choices(leaf.annotation)
     if choices is not None:
         return f"{key} = {value!r} is not allowed; choose one of {choices}"
@@ -246,6 +246,14 @@ def _message(error: dict[str, Any], key: str, leaf: FieldInfo | None, item: bool
     if kind == "string_type":
         return f"{key} = {value!r} must be a string"
     return f"{key} = {value!r}: {error['msg']}"
+
+
+def _as_float(value: int) -> float | int:
+    """An int as a float field holds it; an int too large for a float stays as it is."""
+    try:
+        return float(value)
+    except OverflowError:
+        return value
 
 
 PILE_ANGLE_RANGE_DEG = (15.0, 60.0)
