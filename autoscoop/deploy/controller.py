@@ -1,7 +1,8 @@
 """The controller node's logic, free of ROS: readings in, clamped commands out, one scoop at a time.
 
 A front end (``autoscoop.deploy.ros1.controller_node``, or a test) feeds it each message as plain
-numbers with the time it arrived, and calls :meth:`ControllerCore.update` whenever
+numbers with the time it arrived (and, for a message with a header, its
+:class:`~autoscoop.deploy.safety.Stamp`), and calls :meth:`ControllerCore.update` whenever
 :meth:`ControllerCore.next_wakeup` comes or a message may have changed things; every
 :class:`~autoscoop.deploy.safety.Command` it returns is to be published at once.
 
@@ -18,6 +19,9 @@ robot's limits. Otherwise:
 | an input stale, missing or bad (``fault``) | 0     | the last command, held               |
 | ``estop`` true (``estop``)                 | 0     | the last command, held               |
 
+An input is stale when its newest reading is older than ``control.input_timeout_s``: by the header
+stamp for ``joint_states``, ``odom`` and ``pile_range`` (a stamp that stops advancing goes stale; one
+too old, too far ahead of the node's clock or out of order is bad), by arrival for the others.
 A fault or an estop is published the moment it is seen (the watchdog's expiry is a wake-up time),
 not at the next control period; the scoop resumes when every input is healthy again.
 """
@@ -26,7 +30,6 @@ from __future__ import annotations
 
 import math
 import time
-from collections import deque
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -53,7 +56,7 @@ from autoscoop.core.state import (
     validate_action,
 )
 from autoscoop.deploy.robot_config import RobotNodeConfig
-from autoscoop.deploy.safety import Command, CommandLimiter, InputWatchdog
+from autoscoop.deploy.safety import Command, CommandLimiter, InputWatchdog, Stamp
 from autoscoop.envs.outcome import EpisodeOutcome
 from autoscoop.envs.records import EpisodeRecord, episode_meta
 
@@ -63,6 +66,10 @@ SENSOR_INPUTS = ("joint_states", "odom", "pile_range")
 ``payload_mass``), and ``estop`` when ``estop.required``."""
 WAKE_SLACK_S = 1e-4
 """A wake-up this close before a deadline counts as on time (timers fire a little early or late)."""
+REPEAT_LOG_S = 1.0
+"""While the robot stays stopped, a changed reason is logged at most this often, s (a sensor sending
+garbage at 50 Hz would otherwise write a line per message); ``~status`` has every change."""
+STOPPED_MODES = ("fault", "estop")
 
 
 def payload_inputs(payload: Any) -> tuple[str, ...]:
@@ -104,6 +111,25 @@ class PayloadMass:
         return self._last
 
 
+class DelayLog:
+    """The last ``size`` transport delays of one input, s, in a ring allocated (and touched) up front, so
+    that a node running for days does not grow: 100 000 delays (35 min at 48 Hz) are 0.8 MB."""
+
+    def __init__(self, size: int = 100_000) -> None:
+        self._ring = np.full(size, np.nan)
+        self._next = 0
+        self.count = 0
+
+    def append(self, delay_s: float) -> None:
+        self._ring[self._next] = delay_s
+        self._next = (self._next + 1) % len(self._ring)
+        self.count = min(self.count + 1, len(self._ring))
+
+    def values(self) -> np.ndarray:
+        """The delays kept (in no particular order once the ring has wrapped), s."""
+        return self._ring[:self.count]
+
+
 @dataclass
 class _Episode:
     index: int
@@ -140,7 +166,7 @@ class ControllerCore:
         self.period_s = config.control.control_period_s
         self.limiter = CommandLimiter(config.limits, self.period_s)
         inputs = SENSOR_INPUTS + payload_inputs(config.payload) + (("estop",) if config.estop.required else ())
-        self.watchdog = InputWatchdog(inputs, config.control.input_timeout_s)
+        self.watchdog = InputWatchdog(inputs, config.control.input_timeout_s, config.control.max_future_stamp_s)
         self.mass_from_torque = mass_from_torque or PayloadMass(config.payload.calibration,
                                                                 config.payload.empty_below_kg, config.payload.method)
         self.readings = ReadingAverage()
@@ -168,13 +194,18 @@ class ControllerCore:
         """(speed, lift, tilt) last published; lift and tilt NaN until an arm command is published."""
         self._start_requested = bool(config.control.auto_start)
         self._next_control = -math.inf
-        self.delays: dict[str, deque] = {}
+        self._stop_logged = -math.inf
+        self.delays: dict[str, DelayLog] = {}
+        """each stamped input's transport delays (stamp -> arrival), s"""
 
     # ---------------------------------------------------------------- inputs (each with its arrival time)
-    def joint_states(self, names: Sequence[str], positions: Sequence[float], now: float) -> bool:
+    def joint_states(self, names: Sequence[str], positions: Sequence[float], now: float,
+                     stamp: Stamp | None = None) -> bool:
         """``sensor_msgs/JointState``: names and positions (raw readings where a potentiometer is calibrated).
 
-        The sensor inputs return whether the reading was valid (an invalid one stops the robot at once)."""
+        The sensor inputs take the arrival time ``now`` (s, monotonic) and, for a stamped message, its
+        ``stamp``; they return whether the reading was taken (``False``: refused, which stops the robot at
+        once, or a repeated stamp, which is ignored)."""
         values = {}
         for joint in ("lift", "tilt"):
             name = getattr(self.config.sensors, f"{joint}_joint")
@@ -194,14 +225,15 @@ class ControllerCore:
                 self.watchdog.invalid("joint_states", f"{joint} = {angle:.3f} rad is outside [{low:.3f}, {high:.3f}]")
                 return False
             values[joint] = angle
+        if not self.watchdog.valid("joint_states", now, stamp):
+            return False
         self.lift_rad, self.tilt_rad = values["lift"], values["tilt"]
         self.readings.add(self._reading(), ("lift_rad", "tilt_rad"))
-        self.watchdog.valid("joint_states", now)
         return True
 
-    def odometry(self, speed_mps: float, now: float, chassis_pitch_rad: float = 0.0) -> bool:
+    def odometry(self, speed_mps: float, now: float, chassis_pitch_rad: float = 0.0, stamp: Stamp | None = None) -> bool:
         """``nav_msgs/Odometry``: forward speed, m/s, and the chassis pitch of its orientation, rad (nose down +)."""
-        if not self._within("odom", speed_mps, self.config.sensors.max_speed_reading_mps, "m/s", now):
+        if not self._within("odom", speed_mps, self.config.sensors.max_speed_reading_mps, "m/s", now, stamp):
             return False
         self.speed_mps = float(speed_mps)
         pitch = float(chassis_pitch_rad)
@@ -209,7 +241,8 @@ class ControllerCore:
         self.readings.add(self._reading(), ("chassis_pitch_rad",))
         return True
 
-    def pile_range(self, range_m: float, now: float, min_range_m: float = 0.0, max_range_m: float = math.inf) -> bool:
+    def pile_range(self, range_m: float, now: float, min_range_m: float = 0.0, max_range_m: float = math.inf,
+                   stamp: Stamp | None = None) -> bool:
         """``sensor_msgs/Range``: distance from the tip to the pile, m; outside [min, max] is no reading (REP 117)."""
         low = min_range_m if math.isfinite(min_range_m) else 0.0
         high = self.config.sensors.max_range_m
@@ -218,8 +251,9 @@ class ControllerCore:
         if not math.isfinite(range_m) or not (max(low, 0.0) <= range_m <= high):
             self.watchdog.invalid("pile_range", f"range {range_m} m is not within [{max(low, 0.0):g}, {high:g}] m")
             return False
+        if not self.watchdog.valid("pile_range", now, stamp):
+            return False
         self.range_m = float(range_m)
-        self.watchdog.valid("pile_range", now)
         return True
 
     def bucket_torque(self, tilt_torque_nm: float, now: float) -> bool:
@@ -245,13 +279,18 @@ class ControllerCore:
         self.reported_mass_kg = float(mass_kg)
         return True
 
-    def _within(self, name: str, value: float, limit: float, unit: str, now: float) -> bool:
-        """Mark input ``name`` valid if ``value`` is finite and within +-``limit``, else bad."""
-        if not math.isfinite(value) or abs(value) > limit:
+    def _within(self, name: str, value: float, limit: float, unit: str, now: float,
+                stamp: Stamp | None = None) -> bool:
+        """Mark input ``name`` bad unless ``value`` is finite and within +-``limit``; else whether the
+        watchdog takes the reading (its stamp, if any, checked)."""
+        try:
+            number = float(value)
+        except (TypeError, ValueError):
+            number = math.nan
+        if not math.isfinite(number) or abs(number) > limit:
             self.watchdog.invalid(name, f"{value} {unit} is not within +-{limit:g} {unit}")
             return False
-        self.watchdog.valid(name, now)
-        return True
+        return self.watchdog.valid(name, now, stamp)
 
     def estop(self, engaged: bool, now: float) -> None:
         """``std_msgs/Bool``: true stops the robot until a false arrives."""
@@ -269,7 +308,10 @@ class ControllerCore:
 
     def transport_delay(self, name: str, delay_s: float) -> None:
         """Note how long a stamped message took from its stamp to its arrival, s (for reports)."""
-        self.delays.setdefault(name, deque(maxlen=100_000)).append(float(delay_s))
+        log = self.delays.get(name)
+        if log is None:
+            log = self.delays[name] = DelayLog()
+        log.append(delay_s)
 
     # ---------------------------------------------------------------- the loop
     def next_wakeup(self, now: float) -> float:
@@ -300,7 +342,7 @@ class ControllerCore:
             mode, reason = ("running" if (self.episode is not None or self._start_requested) else "idle"), ""
         changed = (mode, reason) != (self.mode, self.reason)
         if changed:
-            self._log_transition(mode, reason)
+            self._log_transition(mode, reason, now)
         self.mode, self.reason = mode, reason
         if mode == "running":
             if self._start_requested and self.episode is None:
@@ -348,7 +390,7 @@ class ControllerCore:
                 raise ValueError(f"state is not finite: {state.tolist()}")
             action = validate_action(self.policy.act(state))
         except Exception as error:
-            self._log_transition("fault", f"policy error: {error}")
+            self._log_transition("fault", f"policy error: {error}", now)
             episode.previous = None
             return self._stopped("fault", f"policy error: {error}")
         if episode.pending_action is not None:
@@ -432,17 +474,24 @@ class ControllerCore:
             self.saved.append(path)
             self.log("info", f"wrote {path}")
 
-    def _log_transition(self, mode: str, reason: str) -> None:
-        if mode in ("fault", "estop"):
-            self.log("warn", f"stopping (zero velocity, arm held): {reason}")
-        elif self.mode in ("fault", "estop"):
+    def _log_transition(self, mode: str, reason: str, now: float) -> None:
+        """Log a stop and a recovery at once; a changed reason while stopped, at most every ``REPEAT_LOG_S``."""
+        if mode in STOPPED_MODES:
+            if mode != self.mode:
+                self.log("warn", f"stopping (zero velocity, arm held): {reason}")
+            elif now - self._stop_logged < REPEAT_LOG_S:
+                return
+            else:
+                self.log("warn", f"still stopped: {reason}")
+            self._stop_logged = now
+        elif self.mode in STOPPED_MODES:
             self.log("info", f"inputs healthy again: {mode}")
 
     def delay_summary(self) -> dict[str, Any]:
         """Median, 99th percentile and max of each stamped input's transport delay, s."""
         out = {}
-        for name, values in self.delays.items():
-            a = np.asarray(values)
+        for name, log in self.delays.items():
+            a = log.values()
             if len(a):
                 out[name] = {"median": float(np.median(a)), "p99": float(np.percentile(a, 99)),
                              "max": float(a.max()), "n": len(a)}

@@ -2,7 +2,7 @@
 
 One YAML file (``autoscoop ros controller --config robot.yaml``), every section optional::
 
-    control:   {control_period_s: 0.25, input_timeout_s: 0.5, episode_s: 8.0, auto_start: false}
+    control:   {control_period_s: 0.25, input_timeout_s: 0.5, max_future_stamp_s: 0.1, episode_s: 8.0, ...}
     limits:    {max_speed_mps: 0.1, lift_min_rad: -0.1, lift_max_rad: 0.32, ...}
     sensors:   {lift_joint: lift, tilt_joint: tilt, joint_margin_rad: 0.05, ...}
     estop:     {required: false}
@@ -35,7 +35,10 @@ class ControlSection(ConfigModel):
 
     section = "control"
     control_period_s: float = setting(0.25, "s", "time between policy steps (the policy's training period)", 0.02, 1.0)
-    input_timeout_s: float = setting(0.5, "s", "an input older than this stops the robot (watchdog)", 0.02, 5.0)
+    input_timeout_s: float = setting(0.5, "s", "an input older than this stops the robot (watchdog): by its header "
+                                          "stamp where it has one, else by its arrival", 0.02, 5.0)
+    max_future_stamp_s: float = setting(0.1, "s", "a message stamped further ahead of the node's clock than this "
+                                                  "stops the robot (clock skew allowed between machines)", 0.0, 5.0)
     episode_s: float = setting(8.0, "s", "a scoop ends after this long (the training episode limit)", 0.5, 600.0)
     start_pose_tolerance_rad: float = setting(0.05, "rad", "a scoop's arm targets start at the task's start pose "
                                                            "(robot.start_lift_rad, start_tilt_rad) when both joints "

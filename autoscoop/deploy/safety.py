@@ -15,32 +15,103 @@ import numpy as np
 from autoscoop.deploy.robot_config import LimitsSection
 
 
-class InputWatchdog:
-    """Tracks when each input last brought a valid reading, and which are bad.
+@dataclass(frozen=True)
+class Stamp:
+    """When a stamped message's reading was taken, as the message and the node's clock tell it.
 
-    An input is *healthy* when its latest message was valid and arrived at most ``timeout_s`` ago.
-    A message that fails the checks (non-finite, out of range, a missing joint) makes its input bad
-    at once, until a valid one arrives.
+    Attributes:
+        header_s: the message's ``header.stamp``, s on the sender's ROS clock (0: not stamped).
+        clock_s: the node's ROS clock (``rospy.get_time()``) when the message arrived, s.
+    """
+
+    header_s: float
+    clock_s: float
+
+    @property
+    def age_s(self) -> float:
+        """How old the reading was when it arrived, s (negative: stamped ahead of the node's clock)."""
+        return self.clock_s - self.header_s
+
+
+class InputWatchdog:
+    """Tracks when each input's latest valid reading was taken, and which inputs are bad.
+
+    An input is *healthy* when its latest message was valid and its reading was taken at most
+    ``timeout_s`` ago. A reading is taken when its message arrives, or, for a message with a header
+    (a :class:`Stamp`), at its stamp: a driver that re-publishes an old reading, or stamps it late,
+    cannot keep an input fresh. A message that fails the checks makes its input bad at once, until a
+    valid one arrives; for a stamped message the checks are, besides its values (the caller's):
+
+    - stamped (``header.stamp`` not 0);
+    - at most ``max_future_s`` ahead of the node's clock (clock skew); up to that, it counts as taken
+      on arrival;
+    - at most ``timeout_s`` old on arrival;
+    - not older than the input's last accepted stamp, while that one is fresh (out of order: two
+      publishers, or a clock stepped back). Once the input has gone stale, its order starts afresh.
+
+    A message that repeats the last accepted stamp (a frozen driver) is ignored: it neither refreshes
+    the input nor makes it bad, so the input goes stale ``timeout_s`` after that stamp.
 
     Args:
         names: the inputs watched, e.g. ``("joint_states", "odom", ...)``.
         timeout_s: largest allowed age of an input, s.
+        max_future_s: how far ahead of the node's clock a stamp may be, s.
     """
 
-    def __init__(self, names: tuple[str, ...] | list[str], timeout_s: float) -> None:
+    def __init__(self, names: tuple[str, ...] | list[str], timeout_s: float, max_future_s: float = 0.1) -> None:
         if not (timeout_s > 0 and math.isfinite(timeout_s)):
             raise ValueError(f"watchdog timeout must be a positive number of seconds, got {timeout_s}")
+        if not (max_future_s >= 0 and math.isfinite(max_future_s)):
+            raise ValueError(f"watchdog future-stamp bound must be a finite number of seconds >= 0, got {max_future_s}")
         self.names = tuple(names)
         self.timeout_s = float(timeout_s)
+        self.max_future_s = float(max_future_s)
         self._last_valid: dict[str, float | None] = {name: None for name in self.names}
+        self._last_stamp: dict[str, float] = {}
         self._bad: dict[str, str] = {}
 
-    def valid(self, name: str, now: float) -> None:
-        """A valid reading of ``name`` arrived at ``now`` (an input not watched is ignored)."""
+    def valid(self, name: str, now: float, stamp: Stamp | None = None) -> bool:
+        """A reading of ``name`` that passed its value checks arrived at ``now``; whether it is taken.
+
+        Without ``stamp`` it is taken as read at ``now``. With one, it may be refused (the input is
+        then bad, and ``False`` returned) or ignored as a repeat (``False``, the input unchanged); see
+        the class docstring. An input not watched is ignored (``True``).
+        """
         if name not in self._last_valid:
-            return
-        self._last_valid[name] = now
+            return True
+        taken = now if stamp is None else self._taken(name, now, stamp)
+        if taken is None:
+            return False
+        last = self._last_valid[name]
+        self._last_valid[name] = taken if last is None else max(last, taken)
         self._bad.pop(name, None)
+        return True
+
+    def _taken(self, name: str, now: float, stamp: Stamp) -> float | None:
+        """When a stamped reading was taken on the ``now`` clock; ``None`` when refused (marked bad) or a repeat.
+
+        The reasons hold no per-message numbers, so that a run of refused messages is one fault (one
+        log line, one status), not one per message."""
+        header, age = stamp.header_s, stamp.age_s
+        previous = self._last_stamp.get(name)
+        if header == previous:  # a repeat: the input ages from its stamp (one "stale" fault, not one per message)
+            return None
+        last = self._last_valid[name]
+        in_order = previous is None or header > previous or (last is not None and now - last > self.timeout_s)
+        why = ""
+        if not (math.isfinite(header) and header > 0 and math.isfinite(age)):
+            why = "message not stamped (header.stamp 0): its age cannot be judged"
+        elif age < -self.max_future_s:
+            why = f"stamped over {self.max_future_s:g} s ahead of the node's clock"
+        elif age > self.timeout_s:
+            why = f"stamped over {self.timeout_s:g} s ago"
+        elif not in_order:
+            why = "stamped before the last accepted message (out of order)"
+        if why:
+            self.invalid(name, why)
+            return None
+        self._last_stamp[name] = header
+        return now - max(age, 0.0)
 
     def invalid(self, name: str, why: str) -> None:
         """A reading of ``name`` failed its checks (``why`` says how); the input is bad until the next valid one."""

@@ -5,7 +5,9 @@ Subscribes (relative names, remappable with ``name:=new``): ``joint_states``, ``
 ``payload_mass`` instead with ``payload.source: topic``), ``estop``, ``scoop``. Publishes: ``cmd_vel``,
 ``lift_controller/command``, ``tilt_controller/command``, and ``~status`` (std_msgs/String, latched:
 the mode and why the robot is stopped). All logic is in :mod:`autoscoop.deploy.controller`; this
-module (:class:`ControllerNode`) converts messages and keeps time.
+module (:class:`ControllerNode`) converts messages and keeps time: each message goes to the core with
+its arrival on the monotonic clock and, for ``joint_states``, ``odom`` and ``pile_range``, its header
+stamp with the ROS clock (``rospy.get_time()``) at arrival, so the watchdog judges their age by the stamp.
 """
 
 from __future__ import annotations
@@ -18,7 +20,7 @@ from typing import Any
 from autoscoop.core.payload import pitch_from_quaternion
 from autoscoop.deploy.controller import ControllerCore, payload_inputs
 from autoscoop.deploy.ros1 import import_rospy, publishers, subscribers
-from autoscoop.deploy.safety import Command
+from autoscoop.deploy.safety import Command, Stamp
 
 NODE_NAME = "autoscoop_controller"
 LONGEST_SLEEP_S = 0.1
@@ -28,8 +30,9 @@ LONGEST_SLEEP_S = 0.1
 class ControllerNode:
     """The rospy front end of a :class:`ControllerCore`: one callback per input, :meth:`spin` for the loop.
 
-    Every callback hands its message to the core under one lock with the time it arrived, and wakes
-    the loop when the message may stop the robot (a bad reading, ``estop``, ``scoop``); the loop runs
+    Every callback hands its message to the core under one lock with the time it arrived (and its
+    stamp, where it has a header), and wakes the loop when the message may stop the robot (a refused
+    reading, ``estop``, ``scoop``); the loop runs
     :meth:`ControllerCore.update` at the core's wake-up times and publishes what it returns.
 
     Args:
@@ -68,10 +71,16 @@ class ControllerNode:
             "estop": self.on_estop, "scoop": self.on_scoop})
 
     # ---------------------------------------------------------------- callbacks (rospy's threads)
-    def _stamped_delay(self, name: str, header: Any) -> None:
-        stamp = header.stamp.to_sec()
-        if stamp > 0:
-            self.core.transport_delay(name, self.rospy.get_time() - stamp)
+    def _stamped(self, name: str, header: Any, handler: Callable[[float, Stamp], bool]) -> None:
+        """Feed a message with a header: its stamp and the ROS clock are read with the arrival time; the
+        transport delay (stamp -> arrival) of each reading taken is noted for the records."""
+        def with_stamp(now: float) -> bool:
+            stamp = Stamp(header.stamp.to_sec(), self.rospy.get_time())
+            taken = handler(now, stamp)
+            if taken:
+                self.core.transport_delay(name, stamp.age_s)
+            return taken
+        self._feed(with_stamp)
 
     def _feed(self, handler: Callable[[float], bool | None], always_wake: bool = False) -> None:
         with self.lock:
@@ -81,20 +90,19 @@ class ControllerNode:
 
     def on_joint_states(self, msg: Any) -> None:
         """``sensor_msgs/JointState``."""
-        self._stamped_delay("joint_states", msg.header)
-        self._feed(lambda now: self.core.joint_states(msg.name, msg.position, now))
+        self._stamped("joint_states", msg.header,
+                      lambda now, stamp: self.core.joint_states(msg.name, msg.position, now, stamp))
 
     def on_odom(self, msg: Any) -> None:
         """``nav_msgs/Odometry``: the forward speed, and the chassis pitch of the orientation."""
-        self._stamped_delay("odom", msg.header)
         q = msg.pose.pose.orientation
-        self._feed(lambda now: self.core.odometry(msg.twist.twist.linear.x, now,
-                                                  pitch_from_quaternion(q.w, q.x, q.y, q.z)))
+        self._stamped("odom", msg.header, lambda now, stamp: self.core.odometry(
+            msg.twist.twist.linear.x, now, pitch_from_quaternion(q.w, q.x, q.y, q.z), stamp))
 
     def on_range(self, msg: Any) -> None:
         """``sensor_msgs/Range``."""
-        self._stamped_delay("pile_range", msg.header)
-        self._feed(lambda now: self.core.pile_range(msg.range, now, msg.min_range, msg.max_range))
+        self._stamped("pile_range", msg.header, lambda now, stamp: self.core.pile_range(
+            msg.range, now, msg.min_range, msg.max_range, stamp))
 
     def on_tilt_torque(self, msg: Any) -> None:
         """``std_msgs/Float64`` on ``bucket_torque``: the tilt torque, N*m."""

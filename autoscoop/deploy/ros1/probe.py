@@ -1,24 +1,32 @@
-"""A stand-in robot on the controller's topics: publishes sensor messages, records the commands.
+"""Stand-ins on the controller's topics, for tests and benchmarks of ``autoscoop ros controller``.
 
-For tests and benchmarks of ``autoscoop ros controller`` (watchdog latency, estop, fuzzed
-messages): it plays the robot's sensors at a fixed rate with values one can change or stop per
-topic, or replace by arbitrary messages, and timestamps every command it receives on its own
-monotonic clock. Call :func:`rospy.init_node` before building it.
+:class:`RobotProbe` is a stand-in robot (watchdog latency, estop, fuzzed messages): it plays the
+robot's sensors at a fixed rate with values one can change or stop per topic, or replace by
+arbitrary messages, and timestamps every command it receives on its own monotonic clock.
+:class:`FaultRelay` passes another node's sensor messages (``autoscoop ros sim``'s, remapped) on
+to the controller, with faults injected on demand (``benchmarks/ros_soak.py``). Call
+:func:`rospy.init_node` before building either.
 """
 
 from __future__ import annotations
 
+import copy
 import math
 import threading
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
+from functools import partial
 from typing import Any
 
+import numpy as np
+
 from autoscoop.deploy.robot_config import TopicsSection
-from autoscoop.deploy.ros1 import import_rospy, publishers, subscribers
+from autoscoop.deploy.ros1 import import_rospy, message_class, publishers, subscribers
 
 SENSOR_TOPICS = ("joint_states", "odom", "pile_range", "bucket_torque", "lift_torque")
+STAMPED_TOPICS = ("joint_states", "odom", "pile_range")
+"""The sensor topics whose messages carry a header stamp."""
 
 
 @dataclass(frozen=True)
@@ -155,7 +163,7 @@ class RobotProbe:
 
 
 # -------------------------------------------------------------------- latency trials
-def _start_moving(probe: RobotProbe, timeout_s: float = 3.0) -> None:
+def start_moving(probe: RobotProbe, timeout_s: float = 3.0) -> None:
     """Start a scoop and wait until the controller drives forward."""
     sent = probe.publish("scoop", probe.msg["Bool"](True))
     if probe.wait_for_command("cmd_vel", lambda v: v > 0.0, since=sent, timeout_s=timeout_s) is None:
@@ -171,7 +179,7 @@ def watchdog_trial(probe: RobotProbe, phase_s: float, timeout_s: float = 3.0) ->
             the control period).
         timeout_s: give up after this long without a zero command.
     """
-    _start_moving(probe)
+    start_moving(probe)
     time.sleep(phase_s)
     probe.enabled["joint_states"] = False
     stopped = time.monotonic()
@@ -186,7 +194,7 @@ def watchdog_trial(probe: RobotProbe, phase_s: float, timeout_s: float = 3.0) ->
 
 def estop_trial(probe: RobotProbe, phase_s: float, timeout_s: float = 3.0) -> float:
     """Engage ``estop`` while the robot drives; seconds to a zero ``cmd_vel``; releases it again."""
-    _start_moving(probe)
+    start_moving(probe)
     time.sleep(phase_s)
     sent = probe.publish("estop", probe.msg["Bool"](True))
     zero = probe.wait_for_command("cmd_vel", lambda v: v == 0.0, since=sent, timeout_s=timeout_s)
@@ -196,6 +204,35 @@ def estop_trial(probe: RobotProbe, phase_s: float, timeout_s: float = 3.0) -> fl
     return zero.time_s - sent
 
 
+STAMP_FAULTS = {"frozen": None, "old": -10.0, "future": 100.0, "out_of_order": -0.2}
+"""Stamp faults of :func:`stamp_trial`: the shift of each new stamp, s (``frozen``: one message re-published)."""
+
+
+def stamp_trial(probe: RobotProbe, kind: str, timeout_s: float = 2.0) -> float:
+    """Give ``joint_states`` bad stamps (:data:`STAMP_FAULTS`) while the robot drives; seconds to a zero ``cmd_vel``.
+
+    Measured from the frozen reading's stamp (``frozen``) or the first shifted message; ``inf`` when no
+    zero command came within ``timeout_s``. Good stamps again afterwards.
+    """
+    start_moving(probe)
+    frozen = probe.normal_message("joint_states")
+    shift = STAMP_FAULTS[kind]
+    t0 = time.monotonic()
+
+    def make() -> Any:
+        if shift is None:
+            return frozen
+        msg = probe.normal_message("joint_states")
+        msg.header.stamp += probe.rospy.Duration.from_sec(shift)
+        return msg
+
+    probe.custom["joint_states"] = make
+    zero = probe.wait_for_command("cmd_vel", lambda v: v == 0.0, since=t0, timeout_s=timeout_s)
+    probe.custom.pop("joint_states")
+    time.sleep(0.3)  # fresh again
+    return math.inf if zero is None else zero.time_s - t0
+
+
 def latency_summary(values: list[float]) -> dict[str, float]:
     """Median, 99th percentile, max and count of latencies, s."""
     import numpy as np  # noqa: PLC0415
@@ -203,3 +240,157 @@ def latency_summary(values: list[float]) -> dict[str, float]:
     a = np.asarray(values, dtype=float)
     return {"n": len(a), "median_s": float(np.median(a)), "p99_s": float(np.percentile(a, 99)),
             "max_s": float(a.max()), "min_s": float(a.min())}
+
+
+# -------------------------------------------------------------------- a relay with faults on demand
+RELAY_FAULTS = {
+    "silence": "the topic stops",
+    "frozen": "the last message is re-published, stamp and all, instead of new ones",
+    "old": "stamps 10 s in the past",
+    "future": "stamps 100 s ahead of the clock",
+    "out_of_order": "after each message the one before it again (two publishers, one lagging)",
+    "nan": "values NaN",
+    "burst": "each message 20 times back to back, a third of the copies NaN, inf or far out of range",
+    "estop": "estop true, then false",
+}
+"""What :meth:`FaultRelay.inject` can do to a topic (the stamp faults on stamped topics only)."""
+BURST_COPIES = 20
+BAD_VALUES = (math.nan, math.inf, -math.inf, 1e6)
+
+
+@dataclass
+class _Fault:
+    kind: str
+    topic: str
+    t0: float | None = None
+    """when the input turns bad (monotonic s): the first faulty message, or the reading it freezes"""
+    bad_messages: int = 0
+    previous: Any = None
+
+    def sent_bad(self) -> None:
+        self.bad_messages += 1
+        if self.t0 is None:
+            self.t0 = time.monotonic()
+
+
+def with_value(topic: str, msg: Any, value: float) -> Any:
+    """A copy of a sensor message with its reading (the joint positions: both) replaced by ``value``."""
+    out = copy.deepcopy(msg)
+    if topic == "joint_states":
+        out.position = [value] * len(out.position)
+    elif topic == "odom":
+        out.twist.twist.linear.x = value
+    elif topic == "pile_range":
+        out.range = value
+    else:
+        out.data = value
+    return out
+
+
+class FaultRelay:
+    """Relays ``{source}/TOPIC`` to ``TOPIC`` for each sensor topic; :meth:`inject` breaks one for a while.
+
+    Args:
+        source: namespace the simulator's sensor topics are remapped into (``joint_states:=sim/joint_states``).
+        topics: the controller's topic names.
+        seed: for the burst's random copies.
+    """
+
+    def __init__(self, source: str = "sim", topics: TopicsSection | None = None, seed: int = 0) -> None:
+        self.rospy = rospy = import_rospy()
+        from std_msgs.msg import Bool  # noqa: PLC0415
+
+        self.bool = Bool
+        self.topics = topics = topics or TopicsSection()
+        self.rng = np.random.default_rng(seed)
+        self.lock = threading.Lock()
+        self.fault: _Fault | None = None
+        self.last: dict[str, Any] = {}
+        """the last message relayed unchanged, per topic"""
+        self.last_sent: dict[str, float] = {}
+        """when it was relayed (monotonic s)"""
+        self.relayed = 0
+        self.publishers = {**publishers(topics, SENSOR_TOPICS), **publishers(topics, ("estop",))}
+        self.subscribers = [rospy.Subscriber(f"{source}/{getattr(topics, name)}", message_class(name),
+                                             partial(self._relay, name), queue_size=50, tcp_nodelay=True)
+                            for name in SENSOR_TOPICS]
+
+    def wait_connected(self, timeout_s: float = 60.0) -> None:
+        """Wait until the simulator publishes to the relay and the controller listens to it."""
+        deadline = time.monotonic() + timeout_s
+        while time.monotonic() < deadline:
+            if all(p.get_num_connections() > 0 for p in self.publishers.values()) and \
+                    all(s.get_num_connections() > 0 for s in self.subscribers) and len(self.last) == len(SENSOR_TOPICS):
+                return
+            time.sleep(0.05)
+        raise TimeoutError("the relay is not connected to both the simulator and the controller")
+
+    def _relay(self, topic: str, msg: Any) -> None:
+        with self.lock:
+            fault = self.fault if self.fault is not None and self.fault.topic == topic else None
+            out = [(msg, False)] if fault is None else self._faulty(fault, topic, msg)
+            for message, bad in out:
+                if bad:
+                    fault.sent_bad()
+                self.publishers[topic].publish(message)
+            if fault is None:
+                self.last[topic], self.last_sent[topic] = msg, time.monotonic()
+                self.relayed += 1
+
+    def _faulty(self, fault: _Fault, topic: str, msg: Any) -> list[tuple[Any, bool]]:
+        """What goes out instead of ``msg``: (message, whether it is a faulty one)."""
+        kind = fault.kind
+        if kind == "silence":
+            return []
+        if kind == "frozen":
+            return [(self.last[topic], False)]  # the same reading: the input goes stale at its stamp
+        if kind in ("old", "future"):
+            out = copy.deepcopy(msg)
+            out.header.stamp += self.rospy.Duration.from_sec(-10.0 if kind == "old" else 100.0)
+            return [(out, True)]
+        if kind == "out_of_order":
+            previous, fault.previous = fault.previous or self.last[topic], msg
+            return [(msg, False), (previous, True)]
+        if kind == "nan":
+            return [(with_value(topic, msg, math.nan), True)]
+        out = []  # burst
+        for _ in range(BURST_COPIES):
+            bad = self.rng.random() < 1 / 3
+            out.append((with_value(topic, msg, float(self.rng.choice(BAD_VALUES))) if bad else msg, bad))
+        return out
+
+    def inject(self, kind: str, topic: str, duration_s: float) -> dict[str, Any]:
+        """Break ``topic`` (``estop`` for an estop) the way ``kind`` says for ``duration_s``; then relay again.
+
+        Returns:
+            ``kind``, ``topic``, ``t0`` (when the input turned bad, monotonic s: the first faulty
+            message; for ``silence`` the last one relayed, for ``frozen`` the frozen reading's stamp),
+            ``started`` and ``ended`` (monotonic s) and ``bad_messages``.
+        """
+        if kind not in RELAY_FAULTS:
+            raise ValueError(f"unknown fault {kind!r}; known: {sorted(RELAY_FAULTS)}")
+        started = time.monotonic()
+        fault = _Fault(kind, topic)
+        with self.lock:
+            if kind == "silence":
+                fault.t0 = self.last_sent[topic]
+            elif kind == "frozen":
+                fault.t0 = started - (self.rospy.get_time() - self.last[topic].header.stamp.to_sec())
+            self.fault = fault
+        if kind == "estop":
+            self.publishers["estop"].publish(self.bool(True))
+            fault.sent_bad()
+        time.sleep(duration_s)
+        with self.lock:
+            self.fault = None
+        if kind == "estop":
+            self.publishers["estop"].publish(self.bool(False))
+        return {"kind": kind, "topic": topic, "t0": fault.t0, "started": started, "ended": time.monotonic(),
+                "bad_messages": fault.bad_messages}
+
+    def close(self) -> None:
+        """Stop relaying."""
+        for s in self.subscribers:
+            s.unregister()
+        for p in self.publishers.values():
+            p.unregister()
