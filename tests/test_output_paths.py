@@ -86,3 +86,15 @@ def test_good_paths_pass_the_checks(tmp_path):
     check_output_dir(tmp_path / "new" / "deeper", "--out")
     check_output_dir(tmp_path, "--out")
     check_output_file(tmp_path / "new" / "x.json", "--json")
+
+
+def test_ros_sim_json_is_checked_before_any_episode(tmp_path, capsys, monkeypatch):
+    """``ros sim --json`` into a folder fails at once (exit 2), before the simulator or ROS start."""
+    from autoscoop.deploy import sim_bridge
+
+    def refuse(*args, **kwargs):
+        raise AssertionError("the simulator started before the output path was checked")
+
+    monkeypatch.setattr(sim_bridge, "SimBridge", refuse)
+    assert main(["ros", "sim", "--episodes", "1", "--json", str(tmp_path)]) == 2
+    assert str(tmp_path) in capsys.readouterr().err

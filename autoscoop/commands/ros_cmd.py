@@ -12,7 +12,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from autoscoop.commands import add_config_args, config_from_args, seed_int, write_json
+from autoscoop.commands import add_config_args, check_output_file, config_from_args, seed_int, write_json
 from autoscoop.core.config import ConfigError, ScoopConfig, parse_set_args
 
 
@@ -134,6 +134,8 @@ def run_sim(args: argparse.Namespace) -> int:
     from autoscoop.deploy.sim_bridge import SimBridge  # noqa: PLC0415
     from autoscoop.evaluation.evaluate import format_table, summarize  # noqa: PLC0415
 
+    if args.json:
+        check_output_file(args.json, "--json")  # before the episodes, not after them
     config = config_from_args(args)
     link = {key: getattr(args, flag.lstrip("-").replace("-", "_")) for flag, key, _, _ in LINK_OPTIONS}
     try:  # the link options are the environment's sensor keys: one range check, errors naming the key
