@@ -28,13 +28,7 @@ def check_output_file(path: Path, option: str) -> None:
     non-folder or a read-only folder. Missing folders are fine (:func:`write_json` creates them)."""
     if path.is_dir():
         raise ValueError(f"{option} {path}: is a folder, not a file")
-    parent = path.parent
-    while not parent.exists() and parent != parent.parent:
-        parent = parent.parent
-    if not parent.is_dir():
-        raise ValueError(f"{option} {path}: cannot be written, {parent} is not a folder")
-    if not os.access(parent, os.W_OK | os.X_OK):
-        raise ValueError(f"{option} {path}: cannot be written, folder {parent} is not writable")
+    _check_writable_below(path.parent, path, option, "written")
 
 
 def check_output_dir(path: Path, option: str) -> None:
@@ -42,11 +36,16 @@ def check_output_dir(path: Path, option: str) -> None:
     file or a read-only folder. A missing folder is fine (it is created when written)."""
     if path.exists() and not path.is_dir():
         raise ValueError(f"{option} {path}: is a file, not a folder")
-    existing = path
+    _check_writable_below(path, path, option, "created")
+
+
+def _check_writable_below(folder: Path, path: Path, option: str, verb: str) -> None:
+    """``folder``'s nearest existing ancestor (itself, if it exists) must be a writable folder, for ``path``."""
+    existing = folder
     while not existing.exists() and existing != existing.parent:
         existing = existing.parent
     if not existing.is_dir():
-        raise ValueError(f"{option} {path}: cannot be created, {existing} is not a folder")
+        raise ValueError(f"{option} {path}: cannot be {verb}, {existing} is not a folder")
     if not os.access(existing, os.W_OK | os.X_OK):
         raise ValueError(f"{option} {path}: cannot be written, folder {existing} is not writable")
 
