@@ -3,7 +3,7 @@
 The controller's loop against the simulator in one process (no ROS), its readings passed through a
 delay line in simulated time, as ``ros sim --delay-s`` does. It prints the odometry speed of each
 physics step and, per control period, the speed the controller used beside the odometry at that
-instant. The odometry alternates between about 0.29 and 0.04 m/s on successive physics steps once the
+instant. The odometry alternates between about 0.3 and 0.05 m/s on successive physics steps from the
 first steps on (the wheels' velocity servos, kv 30 against a 12 N*m bound at a 1/48 s step,
 ring at the step). The environment samples at the end of each control period (12 steps: always the
 same phase); a 50 ms link over ROS (2.4 steps) lands the controller on the other phase, so the policy
