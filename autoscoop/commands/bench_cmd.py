@@ -1,5 +1,8 @@
 """``autoscoop bench``: physics steps/s, environment steps/s and real-time factor on one core.
 
+``autoscoop bench --n-envs N``: aggregate environment steps/s of N environments stepped together (as training
+builds them: subprocesses) against one, and the scaling ratio.
+
 ``autoscoop bench payload``: error of the payload mass estimated from the joint torques (paper eq. 4, 8).
 """
 
@@ -9,7 +12,7 @@ import argparse
 from pathlib import Path
 
 from autoscoop.commands import add_config_args, check_output_file, config_from_args, write_json
-from autoscoop.evaluation.bench import run_bench
+from autoscoop.evaluation.bench import run_bench, run_vec_bench
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -18,6 +21,14 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                         help="'payload': error of the torque mass estimate (autoscoop.evaluation.payload_bench) instead of speed")
     parser.add_argument("--episodes", type=int, default=10, help="scripted episodes per repeat (payload: moving scoops)")
     parser.add_argument("--repeats", type=int, default=3, help="timed repeats (the median is reported)")
+    parser.add_argument("--n-envs", type=int, metavar="N",
+                        help="measure aggregate env steps/s of N environments stepped together (SubprocVecEnv, as "
+                             "`train --n-envs N`) against 1, and the ratio, instead of the one-core figures")
+    parser.add_argument("--steps", type=int, default=2000,
+                        help="--n-envs: steps each environment takes per repeat (default 2000)")
+    parser.add_argument("--actions", choices=["random", "fixed"], default="random",
+                        help="--n-envs: uniform random actions (default) or the fixed middle action")
+    parser.add_argument("--seed", type=int, default=0, help="--n-envs: seed of the environments and actions")
     parser.add_argument("--json", type=Path, help="write the results to this JSON file")
     parser.add_argument("--records", type=Path, help="payload: write the static holds as records to this folder")
     parser.add_argument("--calibration", type=Path, help="payload: the estimators' calibration YAML (default nominal)")
@@ -32,6 +43,8 @@ def run(args: argparse.Namespace) -> int:
         from autoscoop.commands.payload_cmd import run_payload_bench_cmd  # noqa: PLC0415
 
         return run_payload_bench_cmd(args)
+    if args.n_envs is not None:
+        return run_vec_bench_cmd(args)
     result = run_bench(config_from_args(args), episodes=args.episodes, repeats=args.repeats)
     print(f"physics steps/s   {result['physics_steps_per_s']:10.0f}   (timestep {result['timestep_s']} s)")
     print(f"env steps/s       {result['env_steps_per_s']:10.1f}")
@@ -39,6 +52,32 @@ def run(args: argparse.Namespace) -> int:
     print(f"real-time factor  {result['realtime_factor']:10.1f}   (median of {len(result['repeats'])}: "
           f"{repeats}; {result['cores']})")
     print(f"machine           {result['cpu']}, {result['cpu_count']} cores, MuJoCo {result['mujoco_version']}")
+    if args.json:
+        write_json(args.json, result)
+        print(f"wrote {args.json}")
+    return 0
+
+
+def run_vec_bench_cmd(args: argparse.Namespace) -> int:
+    """``bench --n-envs N``: the table of env steps/s with 1 and N environments and their ratio."""
+    if args.n_envs < 1 or args.steps < 1 or args.repeats < 1:
+        raise ValueError(f"--n-envs, --steps and --repeats must be 1 or more "
+                         f"(got {args.n_envs}, {args.steps}, {args.repeats})")
+    from autoscoop.training.factories import make_vec_env  # noqa: PLC0415 - SB3 only for this measurement
+
+    result = run_vec_bench(make_vec_env, config_from_args(args), n_envs=args.n_envs, steps=args.steps,
+                           repeats=args.repeats, seed=args.seed, actions=args.actions)
+    n = result["n_envs"]
+    print(f"env steps/s, 1 env     {result['env_steps_per_s_1']:10.1f}   (DummyVecEnv)")
+    if n > 1:
+        print(f"env steps/s, {n} envs    {result['env_steps_per_s_n']:10.1f}   ({result['vec_env']}; "
+              f"{result['per_env_steps_per_s_n']:.1f} per env)")
+    ratios = ", ".join(f"{run['scaling_ratio']:.2f}" for run in result["repeats"])
+    print(f"scaling ratio          {result['scaling_ratio']:10.2f}   ({n} envs / 1; repeats: {ratios})")
+    print(f"measured               {result['steps_per_env']} steps per env, {result['actions']} actions, "
+          f"median of {len(result['repeats'])} repeats")
+    print(f"machine                {result['cpu']}, {result['cpu_count']} cores "
+          f"({result['usable_cores']} usable), MuJoCo {result['mujoco_version']}")
     if args.json:
         write_json(args.json, result)
         print(f"wrote {args.json}")

@@ -7,6 +7,11 @@ over wall time, resets and the controller included. Every new
 pile variant is settled once before timing starts (that cost is paid once per environment), and
 the measurement is repeated; the median is reported beside every repeat, since a shared virtual
 machine's speed varies from minute to minute.
+
+With several environments (``autoscoop bench --n-envs N``, :func:`run_vec_bench`) it measures instead the
+aggregate environment steps per second of N environments stepped together, built as training builds them
+(SB3's ``SubprocVecEnv``), against one (``DummyVecEnv``), and their ratio: whether more simulators make
+training's data come faster on this machine. Random or fixed actions, a fixed number of steps.
 """
 
 from __future__ import annotations
@@ -16,6 +21,7 @@ import os
 import platform
 import statistics
 import time
+from collections.abc import Callable
 from typing import Any
 
 import mujoco
@@ -146,6 +152,116 @@ def run_bench(config: ScoopConfig | None = None, episodes: int = 10, repeats: in
         "mujoco_version": mujoco.__version__,
         "python_version": platform.python_version(),
         "cores": pinned,
+        "autoscoop_version": __version__,
+        "config": config.to_dict(),
+    }
+
+
+MakeVecEnv = Callable[[ScoopConfig, int, int], Any]
+"""Builds ``n_envs`` environments seeded from ``seed``: ``make_vec(config, n_envs, seed)``, an SB3 ``VecEnv``.
+The commands pass training's :func:`autoscoop.training.factories.make_vec_env` (evaluation may not import
+training), so the bench steps the environments exactly as training builds them."""
+
+
+def _vec_actions(action_space: Any, n_envs: int, steps: int, actions: str, seed: int) -> np.ndarray:
+    """The ``steps`` × ``n_envs`` actions a vector-env measurement sends, drawn before the clock starts.
+
+    ``random``: uniform over the action space (seeded, the same for every measurement of one seed);
+    ``fixed``: the middle of the action space (all zeros for the scoop's normalised [-1, 1] actions).
+    """
+    low, high = action_space.low, action_space.high
+    if actions == "fixed":
+        return np.broadcast_to((low + high) / 2.0, (steps, n_envs, *action_space.shape)).astype(action_space.dtype)
+    if actions != "random":
+        raise ValueError(f"actions must be 'random' or 'fixed', not {actions!r}")
+    rng = np.random.default_rng(seed)
+    return rng.uniform(low, high, size=(steps, n_envs, *action_space.shape)).astype(action_space.dtype)
+
+
+def measure_vec_env(vec: Any, steps: int, seed: int = 0, actions: str = "random") -> dict[str, float]:
+    """Aggregate environment steps per second of the vector environment ``vec``'s environments stepped together.
+
+    ``vec`` is built as training builds it (:data:`MakeVecEnv`: SB3's ``SubprocVecEnv`` for more than one
+    environment, ``DummyVecEnv`` for one). Each environment takes ``steps`` steps (episodes end and reset
+    inside, as in training); the wall time covers the ``steps`` vector steps from the first action to the
+    last step's end, after a reset with ``seed``; drawing the actions is not timed.
+
+    Returns:
+        ``env_steps_per_s``: all environments' steps per wall second; ``per_env_steps_per_s``: that over
+        ``n_envs``; ``env_steps``: the steps taken (``n_envs × steps``); ``wall_s``: seconds.
+    """
+    plan = _vec_actions(vec.action_space, vec.num_envs, steps, actions, seed)
+    vec.seed(seed)
+    vec.reset()
+    start = time.perf_counter()
+    for step_actions in plan:
+        vec.step(step_actions)
+    wall = time.perf_counter() - start
+    total = vec.num_envs * steps
+    return {"env_steps_per_s": total / wall, "per_env_steps_per_s": total / wall / vec.num_envs,
+            "env_steps": total, "wall_s": wall}
+
+
+def settled_vec_env(make_vec: MakeVecEnv, config: ScoopConfig, n_envs: int, seed: int, progress: bool = True) -> Any:
+    """The training vector environment with every pile variant settled once in each environment.
+
+    Settling a new variant costs seconds and is paid once per environment (each subprocess has its own
+    bank), so it is done before any timing, in every environment at once.
+    """
+    vec = make_vec(config, n_envs, seed)
+    for variant_seed in tqdm(range(config.pile.variants), desc=f"settling piles ({n_envs} envs)",
+                             disable=not progress):
+        vec.env_method("reset", seed=variant_seed)
+    return vec
+
+
+def run_vec_bench(make_vec: MakeVecEnv, config: ScoopConfig | None = None, n_envs: int = 2, steps: int = 2000,
+                  repeats: int = 3, seed: int = 0, actions: str = "random", progress: bool = True) -> dict[str, Any]:
+    """Aggregate env steps/s with one environment and with ``n_envs`` together, and their ratio.
+
+    The two are measured alternately, ``repeats`` times each (one environment first in every repeat), on
+    environments built and settled once; nothing is pinned to a core. The reported rates are the medians,
+    and ``scaling_ratio`` is their quotient (``n_envs``'s aggregate over one's; 1 for ``n_envs`` = 1);
+    every repeat is kept with its own ratio.
+    """
+    config = config or ScoopConfig()
+    if n_envs < 1 or steps < 1 or repeats < 1:
+        raise ValueError(f"n_envs, steps and repeats must be 1 or more (got {n_envs}, {steps}, {repeats})")
+    counts = [1] if n_envs == 1 else [1, n_envs]
+    envs: dict[int, Any] = {}
+    runs: list[dict[str, Any]] = []
+    try:
+        for count in counts:
+            envs[count] = settled_vec_env(make_vec, config, count, seed, progress)
+        for _ in tqdm(range(repeats), desc="bench vec", disable=not progress):
+            repeat: dict[str, Any] = {f"n{count}": measure_vec_env(envs[count], steps, seed, actions)
+                                      for count in counts}
+            repeat["scaling_ratio"] = repeat[f"n{n_envs}"]["env_steps_per_s"] / repeat["n1"]["env_steps_per_s"]
+            runs.append(repeat)
+    finally:
+        for vec in envs.values():
+            vec.close()
+    rate_1 = statistics.median(run["n1"]["env_steps_per_s"] for run in runs)
+    rate_n = statistics.median(run[f"n{n_envs}"]["env_steps_per_s"] for run in runs)
+    return {
+        "n_envs": n_envs,
+        "vec_env": "SubprocVecEnv (fork)" if n_envs > 1 else "DummyVecEnv",
+        "env_steps_per_s_1": rate_1,
+        "env_steps_per_s_n": rate_n,
+        "per_env_steps_per_s_n": rate_n / n_envs,
+        "scaling_ratio": rate_n / rate_1,
+        "repeats": runs,
+        "steps_per_env": steps,
+        "actions": actions,
+        "seed": seed,
+        "timestep_s": config.env.timestep_s,
+        "control_period_s": config.env.control_period_s,
+        "n_particles": config.pile.n_particles,
+        "cpu": cpu_description(),
+        "cpu_count": os.cpu_count(),
+        "usable_cores": len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count(),
+        "mujoco_version": mujoco.__version__,
+        "python_version": platform.python_version(),
         "autoscoop_version": __version__,
         "config": config.to_dict(),
     }
