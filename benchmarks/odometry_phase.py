@@ -19,23 +19,9 @@ import argparse
 
 from autoscoop.agents.loading import load_policy
 from autoscoop.core.config import ScoopConfig
-from autoscoop.core.payload import pitch_from_quaternion
 from autoscoop.deploy.controller import ControllerCore
 from autoscoop.deploy.robot_config import RobotNodeConfig
-from autoscoop.deploy.sim_bridge import DelayLine, SensorReadings, SimBridge
-
-HOLD_STEPS = 30
-"""Sensor periods of the still scene before the scoop starts (the ROS simulator's hold)."""
-
-
-def feed(core: ControllerCore, r: SensorReadings, now: float) -> None:
-    """Hand one set of readings to the controller at ``now`` (its clock, s)."""
-    core.joint_states(r.joint_names, r.joint_positions, now)
-    core.odometry(r.speed_mps, now, pitch_from_quaternion(*r.chassis_quat_wxyz))
-    core.pile_range(r.range_m, now, 0.0, 4.0)
-    core.bucket_torque(r.tilt_torque_nm, now)
-    core.lift_torque(r.lift_torque_nm, now)
-    core.payload_mass(r.payload_kg, now)
+from autoscoop.deploy.sim_bridge import SimBridge, run_without_ros
 
 
 def main() -> None:
@@ -46,31 +32,15 @@ def main() -> None:
     task = ScoopConfig()
     core = ControllerCore(RobotNodeConfig(), load_policy("default", task), task)
     bridge = SimBridge(task)
-    line = DelayLine(args.delay_s)
-    now, period = 1000.0, bridge.sensor_period_s
-    readings = bridge.reset(args.seed)
-    for _ in range(HOLD_STEPS):
-        line.push(now, readings)
-        now += period
-        for due in line.pop_due(now):
-            feed(core, due, now)
-    core.scoop(True, now)
-    odometry, used = [], []
-    while not bridge.done:
-        command = core.update(now)
-        if command is not None:
-            bridge.command_speed(command.speed_mps)
-            if command.lift_rad is not None:
-                bridge.command_joint("lift", command.lift_rad)
-                bridge.command_joint("tilt", command.tilt_rad)
-            used.append((round(core.speed_mps, 3), round(bridge.env.unwrapped.sim.odometry_speed_mps, 3)))
-        readings = bridge.step()
-        odometry.append(round(readings.speed_mps, 3))
-        now += period
-        line.push(now, readings)
-        for due in line.pop_due(now):
-            feed(core, due, now)
-    result = bridge.result()
+    odometry: list[float] = []
+    used: list[tuple[float, float]] = []
+
+    def watch(core: ControllerCore, bridge: SimBridge) -> None:
+        used.append((round(core.speed_mps, 3), round(bridge.env.unwrapped.sim.odometry_speed_mps, 3)))
+
+    bridge.env.unwrapped.sim.add_substep_observer(
+        lambda: odometry.append(round(bridge.env.unwrapped.sim.odometry_speed_mps, 3)))
+    result, _ = run_without_ros(bridge, core, args.seed, start_s=1000.0, delay_s=args.delay_s, on_command=watch)
     print(f"delay {args.delay_s} s, seed {args.seed}: fill {result.fill_factor:.3f}, success {result.success}, "
           f"{result.steps} control periods")
     print("odometry per physics step (m/s), the first 40:", odometry[:40])

@@ -20,6 +20,7 @@ import time
 from pathlib import Path
 
 from autoscoop.agents.loading import load_policy
+from autoscoop.commands.ros_cmd import LINK_OPTIONS
 from autoscoop.core.config import ScoopConfig
 from autoscoop.deploy.ros1.master import RosMaster
 from autoscoop.envs.records import load_record
@@ -41,8 +42,8 @@ def eval_config(delay_s: float, noise: bool, robot_config: Path | None = None) -
                                "env.mass_source": "torque" if source == "torque" else "truth",
                                "env.load_cell_noise_nm": 0.0}
     if noise:
-        keys.update({f"sensor.{flag.lstrip('-').replace('-', '_')}": float(value)
-                     for flag, value in zip(NOISE[::2], NOISE[1::2], strict=True)})
+        key_of = {flag: key for flag, key, _, _ in LINK_OPTIONS}  # ros sim's option -> the config key it sets
+        keys.update({key_of[flag]: float(value) for flag, value in zip(NOISE[::2], NOISE[1::2], strict=True)})
     return ScoopConfig().with_overrides(keys)
 
 

@@ -16,6 +16,7 @@ from __future__ import annotations
 import heapq
 import itertools
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
@@ -225,35 +226,53 @@ class DelayLine:
         self._heap.clear()
 
 
-def run_without_ros(bridge: SimBridge, core: Any, seed: int, start_s: float = 0.0) -> tuple[EpisodeOutcome, float]:
+def feed_readings(core: Any, r: SensorReadings, now: float) -> None:
+    """Hand one set of readings to ``core`` (a :class:`~autoscoop.deploy.controller.ControllerCore`) at
+    ``now`` (its clock, s), as the ROS node's callbacks do, one input at a time."""
+    core.joint_states(r.joint_names, r.joint_positions, now)
+    core.odometry(r.speed_mps, now, pitch_from_quaternion(*r.chassis_quat_wxyz))
+    core.pile_range(r.range_m, now, 0.0, 4.0)
+    core.bucket_torque(r.tilt_torque_nm, now)
+    core.lift_torque(r.lift_torque_nm, now)
+    core.payload_mass(r.payload_kg, now)
+
+
+def run_without_ros(bridge: SimBridge, core: Any, seed: int, start_s: float = 0.0, delay_s: float = 0.0,
+                    on_command: Callable[[Any, SimBridge], None] | None = None) -> tuple[EpisodeOutcome, float]:
     """One episode of ``core`` (a :class:`~autoscoop.deploy.controller.ControllerCore`) against the
     simulator in one process, on simulated time: the ROS loop without its transport.
 
     The controller gets every sensor period's readings and is updated at each (its control periods
-    fall on sensor periods); over ROS only the messages' delays and the clocks differ.
+    fall on sensor periods); over ROS only the messages' delays and the clocks differ. With
+    ``delay_s``, the readings reach it through a :class:`DelayLine` in simulated time, after the
+    reset scene has been read for that long (as ``ros sim`` holds it), like ``ros sim --delay-s``.
 
     Args:
         bridge: the simulator.
         core: the controller, idle (its scoop starts here).
         seed: the episode's seed.
         start_s: the controller's clock at the episode's start (it must never go back).
+        delay_s: transport delay of every reading, s.
+        on_command: called with ``(core, bridge)`` after each command the controller publishes is applied.
 
     Returns:
         The episode's result and the controller's clock at its end.
     """
     readings = bridge.reset(seed)
+    line = DelayLine(delay_s)
+    period = bridge.sensor_period_s
+    now = start_s
 
-    def feed(r: SensorReadings) -> float:
-        now = start_s + r.time_s
-        core.joint_states(r.joint_names, r.joint_positions, now)
-        core.odometry(r.speed_mps, now, pitch_from_quaternion(*r.chassis_quat_wxyz))
-        core.pile_range(r.range_m, now, 0.0, 4.0)
-        core.bucket_torque(r.tilt_torque_nm, now)
-        core.lift_torque(r.lift_torque_nm, now)
-        core.payload_mass(r.payload_kg, now)
-        return now
+    def publish(r: SensorReadings, at: float) -> None:
+        line.push(at, r)
+        for due in line.pop_due(at):
+            feed_readings(core, due, at)
 
-    now = feed(readings)
+    publish(readings, now)
+    for _ in range(math.ceil(delay_s / period - 1e-9)):  # the still scene, until its readings have arrived
+        now += period
+        publish(readings, now)
+    start = now
     core.scoop(True, now)
     while not bridge.done:
         published = core.update(now)
@@ -262,7 +281,10 @@ def run_without_ros(bridge: SimBridge, core: Any, seed: int, start_s: float = 0.
             if published.lift_rad is not None:
                 bridge.command_joint("lift", published.lift_rad)
                 bridge.command_joint("tilt", published.tilt_rad)
+            if on_command is not None:
+                on_command(core, bridge)
         readings = bridge.step()
-        now = feed(readings)
+        now = start + readings.time_s
+        publish(readings, now)
     core.scoop(False, now)
     return bridge.result(), now
