@@ -17,6 +17,7 @@ COMMANDS = [
     "autoscoop.commands.evaluate_cmd",
     "autoscoop.commands.stress_cmd",
     "autoscoop.commands.train_cmd",
+    "autoscoop.commands.sweep_cmd",
     "autoscoop.commands.bench_cmd",
     "autoscoop.commands.config_cmd",
     "autoscoop.commands.payload_cmd",

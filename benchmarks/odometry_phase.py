@@ -1,16 +1,18 @@
-"""Why a 50 ms link breaks the shipped policy over ROS: the wheels' speed alternates from one physics step to the next.
+"""Why a 50 ms link broke the first shipped policy over ROS: the wheels' speed alternates from one physics step to the next.
 
 The controller's loop against the simulator in one process (no ROS), its readings passed through a
 delay line in simulated time, as ``ros sim --delay-s`` does. It prints the odometry speed of each
 physics step and, per control period, the speed the controller used beside the odometry at that
-instant. The odometry alternates between about 0.3 and 0.05 m/s on successive physics steps from the
-first steps on (the wheels' velocity servos, kv 30 against a 12 N*m bound at a 1/48 s step,
+instant. With ``--odometry-window-steps 1`` (the instantaneous wheel speed, the odometry of the first
+versions) the reading alternates between about 0.3 and 0.05 m/s on successive physics steps while the
+wheels push the bucket along (their velocity servos, kv 30 against a 12 N*m bound at a 1/48 s step,
 ring at the step). The environment samples at the end of each control period (12 steps: always the
-same phase); a 50 ms link over ROS (2.4 steps) lands the controller on the other phase, so the policy
-reads a speed about 0.25 m/s too high and keeps scooping. ``autoscoop eval --set sensor.delay_s=X``
-with an odd number of steps (X = 1/48 s) shows the same.
+same phase); a 50 ms link over ROS (2.4 steps) lands the controller on the other phase, so a policy
+trained on the one phase reads a speed about 0.25 m/s too high and keeps scooping. The default
+odometry (``sensor.odometry_window_steps = 2``: the mean over two steps, as an encoder counts the
+wheels' angle) reads the same on either phase.
 
-    .venv/bin/python benchmarks/odometry_phase.py --delay-s 0.05
+    .venv/bin/python benchmarks/odometry_phase.py --delay-s 0.05 --odometry-window-steps 1 --policy heuristic
 """
 
 from __future__ import annotations
@@ -28,9 +30,11 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--delay-s", type=float, default=0.05)
     parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--odometry-window-steps", type=int, default=ScoopConfig().sensor.odometry_window_steps)
+    parser.add_argument("--policy", default="default")
     args = parser.parse_args()
-    task = ScoopConfig()
-    core = ControllerCore(RobotNodeConfig(), load_policy("default", task), task)
+    task = ScoopConfig().with_overrides({"sensor.odometry_window_steps": args.odometry_window_steps})
+    core = ControllerCore(RobotNodeConfig(), load_policy(args.policy, task), task)
     bridge = SimBridge(task)
     odometry: list[float] = []
     used: list[tuple[float, float]] = []

@@ -3,12 +3,13 @@ readings by the right number of physics steps, and ``randomize.preset = none`` i
 
 import hashlib
 import json
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
 import pytest
 
-from autoscoop.agents.heuristic import HeuristicScooper
+from autoscoop.agents.heuristic import HeuristicParams, HeuristicScooper
 from autoscoop.core.config import ROBOT_PRESET, ConfigError, RandomizeConfig, ScoopConfig
 from autoscoop.core.sensing import RawReadings, SensorNoise, add_noise, delay_steps
 from autoscoop.envs.scoop import ScoopEnv, make_scoop_env
@@ -179,14 +180,16 @@ def test_noise_reaches_the_state_but_not_the_metrics():
 
 def test_preset_none_reproduces_the_old_environment_exactly():
     """Digests of the heuristic's observations and rewards, made with the environment before the
-    ``randomize``/``sensor`` sections existed (commit 6fc3819), seeds 0-2, truth and torque mass."""
+    ``randomize``/``sensor`` sections existed (commit 6fc3819), seeds 0-2, truth and torque mass; with
+    the odometry of then (``sensor.odometry_window_steps=1``) and the heuristic's slip share of then."""
     expected = json.loads(DIGESTS.read_text())
     for key, want in expected.items():
         source, seed = key.rsplit("-", 1)
-        config = ScoopConfig().with_overrides({"env.mass_source": source})
+        # the odometry of then: the instantaneous wheel speed, which the heuristic's slip share was tuned to
+        config = ScoopConfig().with_overrides({"env.mass_source": source, "sensor.odometry_window_steps": 1})
         assert config.randomize.preset == "none" and not config.randomize.active
         env = make_scoop_env(config)
-        policy = HeuristicScooper()
+        policy = HeuristicScooper(replace(HeuristicParams(), push_slip_fraction=0.35))
         obs, _ = env.reset(seed=int(seed))
         policy.reset()
         observations, rewards = [obs], []

@@ -7,8 +7,10 @@ early that a full bucket at the terminal point pays more than hovering near it.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from typing import Any
 
+import gymnasium as gym
 import numpy as np
 
 from autoscoop.agents.loading import heuristic_for
@@ -22,7 +24,8 @@ DEMONSTRATION_SEED = 900_000
 
 
 def add_scripted_demonstrations(replay_buffer: Any, config: ScoopConfig, episodes: int,
-                                seed: int = DEMONSTRATION_SEED) -> int:
+                                seed: int = DEMONSTRATION_SEED,
+                                make_env: Callable[[ScoopConfig], gym.Env] = make_scoop_env) -> int:
     """Run ``episodes`` scripted episodes and add every transition to ``replay_buffer``.
 
     Args:
@@ -30,6 +33,8 @@ def add_scripted_demonstrations(replay_buffer: Any, config: ScoopConfig, episode
         config: the training environment's config (reward as trained, not as evaluated).
         episodes: scripted episodes to run.
         seed: seed of the first episode; the others follow.
+        make_env: builds the environment from the config: the one training steps (its observations are
+            the replay buffer's; the heuristic reads the state at their start).
 
     Returns:
         The number of transitions added (a last remainder short of ``n_envs`` is left out).
@@ -38,7 +43,7 @@ def add_scripted_demonstrations(replay_buffer: Any, config: ScoopConfig, episode
     if episodes < 0:
         raise ValueError(f"demonstration episodes = {episodes}; must be >= 0")
     config = demonstration_config(config)
-    env = make_scoop_env(config)
+    env = make_env(config)
     controller = _ClippedFloat32(heuristic_for(config))
     pending: list[tuple[np.ndarray, np.ndarray, np.ndarray, float, bool]] = []
     added = 0

@@ -38,8 +38,9 @@ class HeuristicParams:
     """drive speed while filling, as a fraction of the limit."""
     fill_steps: int = 5
     """control steps spent filling."""
-    push_slip_fraction: float = 0.35
-    """share of the wheel odometry that is slip while pushing into the pile (dead reckoning)."""
+    push_slip_fraction: float = 0.2
+    """share of the wheel odometry that is slip while pushing into the pile (dead reckoning; 0.35 for the
+    instantaneous odometry of ``sensor.odometry_window_steps=1``, which under-reads there)."""
     exit_tilt_rad: float = -0.5
     """tilt held on the way out (fully curled)."""
     exit_height_margin_m: float = 0.03

@@ -14,6 +14,7 @@ from stable_baselines3.td3.policies import Actor, TD3Policy
 from torch import nn
 
 from autoscoop.agents.networks import PAPER_LAYERS, PaperQNetwork, StateNormalizer, paper_mlp
+from autoscoop.core.state import STATE_SIZE
 
 
 class NormalizedState(BaseFeaturesExtractor):
@@ -25,6 +26,35 @@ class NormalizedState(BaseFeaturesExtractor):
 
     def forward(self, observations: torch.Tensor) -> torch.Tensor:
         return self.normalizer(observations)
+
+
+class RobotState(BaseFeaturesExtractor):
+    """The actor's features under an asymmetric critic: the robot's state only (the observation's first
+    :data:`~autoscoop.core.state.STATE_SIZE` numbers), normalised; the privileged rest is dropped."""
+
+    def __init__(self, observation_space: gym.spaces.Box) -> None:
+        super().__init__(observation_space, features_dim=STATE_SIZE)
+        self.normalizer = StateNormalizer()
+
+    def forward(self, observations: torch.Tensor) -> torch.Tensor:
+        return self.normalizer(observations[:, :STATE_SIZE])
+
+
+class PrivilegedState(BaseFeaturesExtractor):
+    """The critic's features under an asymmetric critic: the normalised state, then the simulator's
+    privileged numbers as they are (:mod:`autoscoop.envs.privileged`; each of order one)."""
+
+    def __init__(self, observation_space: gym.spaces.Box) -> None:
+        super().__init__(observation_space, features_dim=int(observation_space.shape[0]))
+        self.normalizer = StateNormalizer()
+
+    def forward(self, observations: torch.Tensor) -> torch.Tensor:
+        return torch.cat([self.normalizer(observations[:, :STATE_SIZE]), observations[:, STATE_SIZE:]], dim=1)
+
+
+def is_privileged(observation_space: gym.spaces.Space) -> bool:
+    """Whether observations carry privileged numbers after the state (an asymmetric critic's training)."""
+    return int(observation_space.shape[0]) > STATE_SIZE
 
 
 class PaperActorSB3(Actor):
@@ -72,8 +102,16 @@ class _PaperDefaults:
         super().__init__(*args, **kwargs)
 
     def make_critic(self, features_extractor: BaseFeaturesExtractor | None = None) -> PaperCriticSB3:
+        if is_privileged(self.observation_space):  # the critic sees all; never the actor's extractor
+            features_extractor = PrivilegedState(self.observation_space)
         critic_kwargs = self._update_features_extractor(self.critic_kwargs, features_extractor)
         return PaperCriticSB3(**critic_kwargs).to(self.device)
+
+    def actor_features(self, features_extractor: BaseFeaturesExtractor | None) -> BaseFeaturesExtractor | None:
+        """The actor's features extractor: the state only, when observations carry privileged numbers."""
+        if is_privileged(self.observation_space):
+            return RobotState(self.observation_space)
+        return features_extractor
 
 
 class PaperPolicy(_PaperDefaults, TD3Policy):
@@ -84,7 +122,7 @@ class PaperPolicy(_PaperDefaults, TD3Policy):
         super().__init__(*args, **kwargs)
 
     def make_actor(self, features_extractor: BaseFeaturesExtractor | None = None) -> PaperActorSB3:
-        actor_kwargs = self._update_features_extractor(self.actor_kwargs, features_extractor)
+        actor_kwargs = self._update_features_extractor(self.actor_kwargs, self.actor_features(features_extractor))
         return PaperActorSB3(**actor_kwargs).to(self.device)
 
 
@@ -100,5 +138,5 @@ class PaperSACPolicy(_PaperDefaults, SACPolicy):
     """SACPolicy with the paper's hidden layers for the actor and the paper's critics."""
 
     def make_actor(self, features_extractor: BaseFeaturesExtractor | None = None) -> PaperSACActor:
-        actor_kwargs = self._update_features_extractor(self.actor_kwargs, features_extractor)
+        actor_kwargs = self._update_features_extractor(self.actor_kwargs, self.actor_features(features_extractor))
         return PaperSACActor(**actor_kwargs).to(self.device)

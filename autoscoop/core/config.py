@@ -314,6 +314,11 @@ class RewardConfig(ConfigModel):
     terminal_dx_m: float = setting(0.20, "m", "terminal point x from the pile's toe (over the pile, where a scoop ends, raised clear of it)", -1.0, 1.0)
     terminal_z_m: float = setting(0.30, "m", "terminal point height above the ground", 0.0, 1.0)
     rated_load_kg: float = setting(7.0, "kg", "rated bucket load; fill factor = mass in bucket / rated load", 0.1, 100.0)
+    fill_measure: Literal["mass", "scoop"] = setting(
+        "mass", "-", "what the bonus pays for: mass (c_w * min(w, 1), the paper's) or scoop (c_w * min(max(w, "
+        "volumetric fill), 1): a bucket full by volume pays as much as one full by mass)")
+    c_overload: float = setting(0.0, "-", "the bonus falls by c_overload * (w - 1) for mass above the rated load",
+                                0.0, 1000.0)
 
 
 class EnvConfig(ConfigModel):
@@ -353,6 +358,10 @@ class SensorConfig(ConfigModel):
     section = "sensor"
     delay_s: float = setting(0.0, "s", "every reading reaches the policy this late (honoured to the physics "
                              "step: rounded to a whole number of env.timestep_s)", 0.0, 2.0)
+    odometry_window_steps: int = setting(2, "steps", "the odometry speed is the wheels' mean speed over this many "
+                                         "physics steps (their angle change, as an encoder counts it); 1 reads the "
+                                         "instantaneous wheel speed, which rings at the physics step while the "
+                                         "wheels push into the pile", 1, 12)
     joint_noise_rad: float = setting(0.0, "rad", "std of the noise on each joint angle reading (lift, tilt)", 0.0, 0.1)
     speed_noise_mps: float = setting(0.0, "m/s", "std of the noise on the odometry speed", 0.0, 0.1)
     range_noise_m: float = setting(0.0, "m", "std of the noise on the range to the pile (kept >= 0)", 0.0, 0.1)

@@ -8,6 +8,12 @@
 d_t: tip to the pile (m); d_end: tip to the terminal point (m); w_t: mass in bucket / rated load;
 s: ``reward.distance_scale_m``, 1 m in the paper (our addition: over a workspace of half a metre,
 s = 1 m leaves P_t between 0.8 and 1, a weak signal; a smaller s sharpens it).
+
+Two additions for a world whose material varies (both off by default, the paper's reward):
+``reward.fill_measure = scoop`` pays c_w * min(max(w_t, v_t), 1), v_t the volumetric fill, the
+measure of a scoop's success (light earth fills the bucket by volume before it reaches the rated
+mass); ``reward.c_overload`` > 0 takes c_overload * (w_t - 1) off the bonus for mass above the
+rated load.
 """
 
 from __future__ import annotations
@@ -23,7 +29,7 @@ def is_penetrating(nearest_particle_m: float, config: RewardConfig) -> bool:
 
 
 def scoop_reward(tip_to_pile_m: float, tip_to_terminal_m: float, penetrating: bool, w: float,
-                 config: RewardConfig) -> tuple[float, dict[str, float]]:
+                 config: RewardConfig, volumetric_fill: float = 0.0) -> tuple[float, dict[str, float]]:
     """Reward of one step and its terms.
 
     Args:
@@ -31,12 +37,18 @@ def scoop_reward(tip_to_pile_m: float, tip_to_terminal_m: float, penetrating: bo
         tip_to_terminal_m: d_end, metres.
         penetrating: eq. 7.
         w: normalised mass in the bucket (paid up to 1: the rated load).
-        config: c_w, epsilon, distance scale.
+        config: c_w, epsilon, distance scale, fill measure, overload cost.
+        volumetric_fill: v_t, the particles' volume over the bucket's capacity (``fill_measure = scoop``).
 
     Returns:
         (reward, {"reward_progress": P_t, "reward_mass": c_w * w_t or 0}); the terms sum to the reward.
     """
     distance = tip_to_terminal_m if penetrating else tip_to_pile_m
     progress = 1.0 - math.tanh(distance / config.distance_scale_m) ** 2
-    mass = config.c_w * min(w, 1.0) if tip_to_terminal_m <= config.epsilon_m else 0.0  # no more for an overload
+    mass = 0.0
+    if tip_to_terminal_m <= config.epsilon_m:
+        fill = max(w, volumetric_fill) if config.fill_measure == "scoop" else w
+        mass = config.c_w * min(fill, 1.0)  # no more for an overload
+        if config.c_overload and w > 1.0:
+            mass -= config.c_overload * (w - 1.0)
     return progress + mass, {"reward_progress": progress, "reward_mass": mass}

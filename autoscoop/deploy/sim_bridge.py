@@ -82,8 +82,9 @@ class SimBridge:
         timestep = config.env.timestep_s
         self.sensor_period_s = timestep * max(1, math.ceil(MIN_SENSOR_PERIOD_S / timestep - 1e-9))
         # the bridge applies the link itself, to the messages: the environment inside reads exact values
+        # (its odometry, a property of the sensor itself, is the task's)
         self.config = config.with_overrides({"env.control_period_s": self.sensor_period_s}).replace(
-            sensor=SensorConfig())
+            sensor=SensorConfig(odometry_window_steps=config.sensor.odometry_window_steps))
         self.env = make_scoop_env(self.config)
         self.noise = noise or SensorNoise.from_config(config.sensor)
         self.robot = robot or RobotNodeConfig()

@@ -204,7 +204,7 @@ class ScoopEnv(gym.Env):
         # the reward's w is the counted fill factor, rounded as the state's w is (float32): with the
         # truth source the same number as obs[0]; with the torque source the true load, not the estimate
         reward, terms = scoop_reward(info["tip_to_pile_m"], info["tip_to_terminal_m"], info["penetrating"],
-                                     float(np.float32(info["fill_factor"])), cfg.reward)
+                                     float(np.float32(info["fill_factor"])), cfg.reward, info["volumetric_fill"])
         info.update(terms)
         terminated = info["reached"]  # the scoop ends at the terminal point, loaded or not
         return obs, float(reward), bool(terminated), False, info

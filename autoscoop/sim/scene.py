@@ -7,6 +7,7 @@ This module owns the simulator; the task (state, reward, episode) lives in ``aut
 from __future__ import annotations
 
 import math
+from collections import deque
 from collections.abc import Callable
 from importlib import resources
 
@@ -156,6 +157,10 @@ class ScoopSim:
         self.variant = 0
         self._pile = config.pile
         self._substep_observers: list[Callable[[], None]] = []
+        self.odometry_window_steps = config.sensor.odometry_window_steps
+        # the mean wheel speed (rad/s) of the physics steps before the last, newest last: the odometry
+        # averages it with the present one over sensor.odometry_window_steps
+        self._wheel_speed_history: deque[float] = deque(maxlen=self.odometry_window_steps - 1)
 
     # ---------------------------------------------------------------- reset and stepping
     def reset(self, rng: np.random.Generator | None = None, *, pile: PileConfig | None = None,
@@ -193,6 +198,7 @@ class ScoopSim:
             self.data.qpos[self._root_qpos] -= start_gap_m - self.config.robot.start_gap_m
         mujoco.mj_kinematics(self.model, self.data)  # positions only: keeps the pile asleep
         self.time_origin_s = float(self.data.time)
+        self._wheel_speed_history.clear()
 
     def pile_of_variant(self, variant: int) -> PileConfig:
         """The pile settings of one variant: ``pile.angle_mix_deg`` in turn, if given."""
@@ -284,10 +290,18 @@ class ScoopSim:
     def step(self, n_steps: int) -> None:
         """Advance the physics by ``n_steps`` steps: in C, one call, unless substep observers are attached
         (:meth:`add_substep_observer`), which are then called after every step, in the order they were added."""
+        history = self._wheel_speed_history.maxlen or 0  # steps the odometry looks back
         if not self._substep_observers:
-            mujoco.mj_step(self.model, self.data, nstep=n_steps)
+            # the last steps one by one, to remember the wheel speed the odometry averages over
+            if n_steps > history:
+                mujoco.mj_step(self.model, self.data, nstep=n_steps - history)
+            for _ in range(min(n_steps, history)):
+                self._wheel_speed_history.append(self._wheel_speed_radps())
+                mujoco.mj_step(self.model, self.data)
             return
         for _ in range(n_steps):
+            if history:
+                self._wheel_speed_history.append(self._wheel_speed_radps())
             mujoco.mj_step(self.model, self.data)
             for observer in tuple(self._substep_observers):
                 observer()
@@ -358,10 +372,23 @@ class ScoopSim:
         """Where the tilt servo is heading now (its integrated setpoint), rad."""
         return float(self.data.act[self._tilt_act_state])
 
+    def _wheel_speed_radps(self) -> float:
+        """The four wheels' mean angular speed now, rad/s."""
+        return float(self.data.qvel[self._wheel_dofs].mean())
+
     @property
     def odometry_speed_mps(self) -> float:
-        """Forward speed from wheel odometry (mean wheel speed x radius), m/s; slip makes it differ from truth."""
-        return float(self.data.qvel[self._wheel_dofs].mean() * WHEEL_RADIUS_M)
+        """Forward speed from wheel odometry, m/s: the wheels' mean speed over the last
+        ``sensor.odometry_window_steps`` physics steps (their angle change over that time, as an encoder
+        counts it; fewer just after a reset) times the wheel radius. Slip makes it differ from truth.
+
+        The wheels' velocity servos ring at the physics step while the wheels push into the pile (the
+        instantaneous speed alternates between about +0.2 and -0.05 m/s about a mean near 0.08), so
+        a window of one step reads a speed that depends on which step a reading lands on; two steps
+        or more average the ringing out."""
+        history = self._wheel_speed_history
+        mean = (self._wheel_speed_radps() + sum(history)) / (1 + len(history))
+        return float(mean * WHEEL_RADIUS_M)
 
     @property
     def lift_torque_nm(self) -> float:

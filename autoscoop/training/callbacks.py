@@ -7,6 +7,8 @@ import csv
 import math
 import sys
 import time
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -154,6 +156,32 @@ class EpisodeLogger(BaseCallback):
         self.csv_file.close()
 
 
+@dataclass(frozen=True)
+class Evaluation:
+    """One periodic evaluation, as :class:`PolicyEvaluator` hands it to its observers: after its row of
+    ``evaluations.csv``, the evaluated actor and (when it is the best so far) ``policy.*`` are written."""
+
+    episode: int
+    """training episodes done when it ran (0: the starting policy of a fine-tuning run)."""
+    delivered_fill: float
+    """its score, in [0, 1]: the mean over its episodes of the fill factor (capped at 1) of successes, 0 for failures."""
+    fill_factor: float
+    """mean fill factor over its episodes (mass in the bucket / rated load)."""
+    success: float
+    """fraction of its episodes that reached the terminal point loaded, in [0, 1]."""
+    cycle_time_s: float
+    """mean cycle time of its successful episodes (s); NaN when none succeeded."""
+    best_score: float
+    """the run's best delivered fill so far, this evaluation's included: the score of the kept ``policy.*``."""
+    actor: Path | None
+    """the evaluated actor (``evaluated/episode_NNNNN.safetensors``); ``None`` where the safe format cannot
+    hold it (PPO)."""
+
+
+EvaluationObserver = Callable[[Evaluation], None]
+"""Called with each :class:`Evaluation` as training goes (``autoscoop sweep`` reports them to Ray Tune)."""
+
+
 class PolicyEvaluator:
     """Evaluates the deterministic policy every ``every`` episodes and keeps the best as ``policy.*``.
 
@@ -163,14 +191,20 @@ class PolicyEvaluator:
 
     Args:
         done: evaluations already in ``evaluations.csv`` (when resuming).
+        make_env: builds the evaluation environment from a config: the environment training steps
+            (the model's observations; an asymmetric critic's carry privileged numbers).
+        observers: called with each :class:`Evaluation`, in order, once its files are written.
     """
 
     SEED = 10_000
 
     def __init__(self, run_dir: Path, config: ScoopConfig, every: int, episodes: int, info: dict[str, Any],
-                 done: int = 0) -> None:
+                 done: int = 0, make_env: Callable[[ScoopConfig], Any] = make_scoop_env,
+                 observers: Sequence[EvaluationObserver] = ()) -> None:
         self.run_dir, self.every, self.episodes, self.info, self.done = run_dir, every, episodes, info, done
-        self.env = make_scoop_env(config)
+        self.observers = list(observers)
+        self.make_env = make_env
+        self.env = make_env(config)
         self.best = float(info.get("best_score", -1.0))
         path = run_dir / "evaluations.csv"
         self.csv_file = open(path, "a", newline="")
@@ -181,7 +215,7 @@ class PolicyEvaluator:
     def enter_world(self, config: ScoopConfig) -> None:
         """Evaluate in ``config``'s world from now on; the next evaluation's policy is kept whatever its score."""
         self.env.close()
-        self.env = make_scoop_env(config)
+        self.env = self.make_env(config)
         self.best = -1.0
         self.info.pop("best_score", None)
         self.info.pop("best_episode", None)
@@ -204,13 +238,18 @@ class PolicyEvaluator:
         logger.record("eval/success", row["success"])
         # every evaluated actor stays (80 kB each): a policy judged on more episodes later can be picked
         meta = {**actor_meta(self.info, self.run_dir), "selected_at_episode": episode}
-        save_safe_actor(model, self.run_dir / "evaluated" / f"episode_{episode:05d}.safetensors",
-                        {**meta, "evaluation_delivered_fill": score})
+        actor = self.run_dir / "evaluated" / f"episode_{episode:05d}.safetensors"
+        saved = save_safe_actor(model, actor, {**meta, "evaluation_delivered_fill": score})
         if score > self.best:
             self.best = score
             model.save(self.run_dir / "policy.zip")
             save_safe_actor(model, self.run_dir / "policy.safetensors", {**meta, "selection_score_delivered_fill": score})
             self.info.update(best_score=score, best_episode=episode)
+        evaluation = Evaluation(episode=episode, delivered_fill=score, fill_factor=row["fill_factor"],
+                                success=row["success"], cycle_time_s=row["cycle_time_s"], best_score=self.best,
+                                actor=actor if saved else None)
+        for observer in self.observers:
+            observer(evaluation)
         return score
 
     def close(self) -> None:

@@ -1,4 +1,4 @@
-"""What a training run is built from: the policy class, the exploration noise and the vector environment."""
+"""What a training run is built from: the policy class, the exploration noise and the environments."""
 
 from __future__ import annotations
 
@@ -13,6 +13,7 @@ from autoscoop.agents import sb3_policies
 from autoscoop.agents.networks import PAPER_LAYERS
 from autoscoop.core.config import ScoopConfig
 from autoscoop.core.state import ACTION_SIZE
+from autoscoop.envs.privileged import PrivilegedObservation
 from autoscoop.envs.scoop import make_scoop_env
 
 
@@ -52,9 +53,18 @@ def set_noise_scale(noise: Any, sigma: float) -> None:
             part._sigma = np.full(ACTION_SIZE, sigma)
 
 
-def make_vec_env(config: ScoopConfig, n_envs: int, seed: int) -> Any:
-    """``n_envs`` scoop environments (in subprocesses when more than one), seeded from ``seed``."""
-    factories = [partial(make_scoop_env, config) for _ in range(n_envs)]
+def make_training_env(config: ScoopConfig, privileged: bool = False) -> Any:
+    """One environment as training steps it: with ``privileged`` (the YAML's ``privileged_critic``), its
+    observations carry the simulator's privileged numbers after the state (:mod:`autoscoop.envs.privileged`)
+    for the critic; the actor reads the state only."""
+    env = make_scoop_env(config)
+    return PrivilegedObservation(env) if privileged else env
+
+
+def make_vec_env(config: ScoopConfig, n_envs: int, seed: int, privileged: bool = False) -> Any:
+    """``n_envs`` training environments (:func:`make_training_env`; in subprocesses when more than one),
+    seeded from ``seed``."""
+    factories = [partial(make_training_env, config, privileged) for _ in range(n_envs)]
     vec = SubprocVecEnv(factories, start_method="fork") if n_envs > 1 else DummyVecEnv(factories)
     vec.seed(seed)
     return vec

@@ -27,7 +27,9 @@ from __future__ import annotations
 
 import sys
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
+from functools import partial
 from pathlib import Path
 from typing import Any
 
@@ -40,7 +42,7 @@ from autoscoop.agents.demonstrations import add_scripted_demonstrations
 from autoscoop.agents.policy_files import sha256_of
 from autoscoop.core.config import ScoopConfig, from_dict, save_yaml
 from autoscoop.core.version import __version__
-from autoscoop.training.callbacks import EpisodeLogger, PolicyEvaluator
+from autoscoop.training.callbacks import EpisodeLogger, Evaluation, PolicyEvaluator
 from autoscoop.training.checkpoints import (
     actor_meta,
     clear_run_outputs,
@@ -55,7 +57,7 @@ from autoscoop.training.checkpoints import (
     save_safe_actor,
     write_run_json,
 )
-from autoscoop.training.factories import make_noise, make_policy, make_vec_env
+from autoscoop.training.factories import make_noise, make_policy, make_training_env, make_vec_env
 from autoscoop.training.learning_curve import plot_learning_curve
 from autoscoop.training.settings import config_at, curriculum_stages, load_recipe, with_hyper_overrides
 
@@ -96,6 +98,17 @@ class TrainArgs:
     ``None``: the recipe or the algorithm's YAML says (``demo_episodes``, 0 if absent)."""
     recipe: str = "paper"
     """``paper`` or ``robot``: a named recipe laid over the algorithm's YAML (autoscoop/training/recipes/)."""
+    on_evaluation: Callable[[Evaluation], None] | None = None
+    """called after each periodic evaluation, its files written (``autoscoop sweep`` reports it to Ray Tune);
+    not recorded in the run directory."""
+    command: str | None = None
+    """the command ``run.json`` records; ``None``: this process's command line."""
+
+
+def privileged_critic(spec: dict[str, Any]) -> bool:
+    """Whether the YAML asks for an asymmetric critic (``privileged_critic: true``): the critic sees the
+    simulator's privileged numbers (:mod:`autoscoop.envs.privileged`), the actor the robot's state."""
+    return bool(spec.get("privileged_critic", False))
 
 
 def _default_run_dir(args: TrainArgs) -> Path:
@@ -108,6 +121,9 @@ def train(args: TrainArgs) -> Path:
     demos = int(spec.get("demo_episodes", 0)) if args.demo_episodes is None else args.demo_episodes
     if demos and ALGORITHMS[args.algo] is PPO:
         raise ValueError("--demo-episodes needs an off-policy algorithm (ddpg, td3, sac); ppo has no replay buffer")
+    if privileged_critic(spec) and (ALGORITHMS[args.algo] is PPO or spec.get("policy") != "paper"):
+        raise ValueError("privileged_critic needs the paper's actor-critic (policy: paper) and ddpg, td3 or sac: "
+                         "only its actor reads the state alone")
     config = ScoopConfig().with_overrides({**(spec.get("env") or {}), **args.overrides})
     config_at(config, spec, args.episodes)  # a curriculum's stages are checked before anything starts
     init_zip = init_model_zip(args.init_from, args.algo, args.trust) if args.init_from else None
@@ -127,26 +143,29 @@ def _start(args: TrainArgs, run_dir: Path, config: ScoopConfig, spec: dict[str, 
     (run_dir / "hyperparams.yaml").write_text(yaml.safe_dump(spec, sort_keys=False))
     info = {"algo": args.algo, "recipe": args.recipe, "seed": args.seed, "episodes": args.episodes,
             "n_envs": args.n_envs,
-            "autoscoop_version": __version__, "command": " ".join(sys.argv), "torch": torch.__version__,
+            "autoscoop_version": __version__, "command": args.command or " ".join(sys.argv),
+            "torch": torch.__version__,
             "checkpoint_every": args.checkpoint_every, "eval_every": args.eval_every,
             "eval_episodes": args.eval_episodes, "demo_episodes": demos,
             "status": "running", "wall_s": 0.0}
     if init_zip is not None:
         info.update(init_from=str(init_zip.resolve()), init_sha256=sha256_of(init_zip))
     write_run_json(run_dir, info)
-    return _run(run_dir, config, spec, info, done=0, model=None, progress=args.progress)
+    return _run(run_dir, config, spec, info, done=0, model=None, progress=args.progress,
+                on_evaluation=args.on_evaluation)
 
 
-def resume(run_dir: Path, progress: bool = True) -> Path:
+def resume(run_dir: Path, progress: bool = True, on_evaluation: Callable[[Evaluation], None] | None = None) -> Path:
     """Continue an interrupted run from its last checkpoint (episodes after it are redone; without a checkpoint
-    the run starts again from episode 0). The resumed run's files are those an uninterrupted run writes."""
+    the run starts again from episode 0). The resumed run's files are those an uninterrupted run writes.
+    ``on_evaluation``: as :attr:`TrainArgs.on_evaluation`, for the evaluations from the checkpoint on."""
     run_dir = Path(run_dir)
     read_run_json(run_dir)  # a run directory, before a lock file is put in it
     with lock_run_dir(run_dir):
-        return _continue(run_dir, progress)
+        return _continue(run_dir, progress, on_evaluation)
 
 
-def _continue(run_dir: Path, progress: bool) -> Path:
+def _continue(run_dir: Path, progress: bool, on_evaluation: Callable[[Evaluation], None] | None = None) -> Path:
     """:func:`resume` under the run directory's lock (``run.json`` is read again: the last holder may have
     finished the run)."""
     info = read_run_json(run_dir)
@@ -163,10 +182,10 @@ def _continue(run_dir: Path, progress: bool) -> Path:
         clear_run_outputs(run_dir)
         _set_bookkeeping(info, wall_s=0.0, best_score=None, best_episode=None)
         write_run_json(run_dir, info)
-        return _run(run_dir, config, spec, info, done=0, model=None, progress=progress)
+        return _run(run_dir, config, spec, info, done=0, model=None, progress=progress, on_evaluation=on_evaluation)
     checkpoint, state = found
     done = state["episodes_done"]
-    env = make_vec_env(config_at(config, spec, done), info["n_envs"], info["seed"] + done)
+    env = make_vec_env(config_at(config, spec, done), info["n_envs"], info["seed"] + done, privileged_critic(spec))
     model = _build_model(run_dir, env, spec, info, seed=info["seed"] + done)
     try:
         load_checkpoint(model, checkpoint, state)
@@ -177,7 +196,7 @@ def _continue(run_dir: Path, progress: bool) -> Path:
     _set_bookkeeping(info, state["wall_s"], state["best_score"], state["best_episode"])
     write_run_json(run_dir, info)
     return _run(run_dir, config, spec, info, done=done, model=model, progress=progress,
-                evaluations_done=state["evaluations_done"])
+                evaluations_done=state["evaluations_done"], on_evaluation=on_evaluation)
 
 
 def _set_bookkeeping(info: dict[str, Any], wall_s: float, best_score: float | None, best_episode: int | None) -> None:
@@ -202,27 +221,31 @@ def _build_model(run_dir: Path, env: Any, spec: dict[str, Any], info: dict[str, 
 
 def _new_model(run_dir: Path, config: ScoopConfig, spec: dict[str, Any], info: dict[str, Any]) -> Any:
     """A fresh model on new environments: the initial run's weights when fine-tuning, demonstrations when asked."""
-    env = make_vec_env(config, info["n_envs"], info["seed"])
+    env = make_vec_env(config, info["n_envs"], info["seed"], privileged_critic(spec))
     model = _build_model(run_dir, env, spec, info, seed=info["seed"])
     if info.get("init_from"):
         load_init_weights(model, Path(info["init_from"]), info["init_sha256"])
     if info.get("demo_episodes"):
-        added = add_scripted_demonstrations(model.replay_buffer, config, info["demo_episodes"])
+        added = add_scripted_demonstrations(model.replay_buffer, config, info["demo_episodes"],
+                                            make_env=partial(make_training_env, privileged=privileged_critic(spec)))
         print(f"replay buffer: {added} transitions of {info['demo_episodes']} scripted scoops", file=sys.stderr)
     return model
 
 
 def _run(run_dir: Path, config: ScoopConfig, spec: dict[str, Any], info: dict[str, Any], done: int,
-         model: Any, progress: bool, evaluations_done: int = 0) -> Path:
+         model: Any, progress: bool, evaluations_done: int = 0,
+         on_evaluation: Callable[[Evaluation], None] | None = None) -> Path:
     """Train from episode ``done`` to the end (``evaluations_done`` evaluations already listed), then write the
-    final files; ``model`` ``None``: a new one."""
+    final files; ``model`` ``None``: a new one. ``on_evaluation`` observes each periodic evaluation."""
     torch.set_num_threads(1)
     n_envs, episodes = info["n_envs"], info["episodes"]
     if model is None:
         model = _new_model(run_dir, config, spec, info)
     evaluator = PolicyEvaluator(run_dir, config_at(config, spec, done), info.get("eval_every", 50),
-                                info.get("eval_episodes", 10), info,
-                                done=evaluations_done) if info.get("eval_every", 50) > 0 else None
+                                info.get("eval_episodes", 10), info, done=evaluations_done,
+                                make_env=partial(make_training_env, privileged=privileged_critic(spec)),
+                                observers=[on_evaluation] if on_evaluation else ()
+                                ) if info.get("eval_every", 50) > 0 else None
     worlds = {episode: config_at(config, spec, episode) for episode, _ in curriculum_stages(spec) if episode > done}
     logger = EpisodeLogger(run_dir, episodes, done, info, spec, info["checkpoint_every"], progress, evaluator,
                            config.env.control_period_s, evaluate_at_start=bool(info.get("init_from")) and done == 0,

@@ -1,0 +1,44 @@
+"""The reward's bonus: the paper's mass bonus, and the two options for a world whose material varies."""
+
+from __future__ import annotations
+
+import pytest
+
+from autoscoop.core.config import ConfigError, RewardConfig
+from autoscoop.core.reward import scoop_reward
+
+AT_GOAL = dict(tip_to_pile_m=0.3, tip_to_terminal_m=0.0, penetrating=True)
+
+
+def bonus(w: float, volumetric: float = 0.0, **settings) -> float:
+    _, terms = scoop_reward(**AT_GOAL, w=w, config=RewardConfig(c_w=50.0, **settings), volumetric_fill=volumetric)
+    return terms["reward_mass"]
+
+
+def test_paper_bonus_pays_mass_up_to_the_rated_load_and_ignores_volume():
+    assert bonus(0.6, volumetric=0.9) == pytest.approx(30.0)
+    assert bonus(1.4) == pytest.approx(50.0)
+
+
+def test_scoop_measure_pays_the_higher_of_mass_and_volume_up_to_one():
+    assert bonus(0.45, volumetric=0.8, fill_measure="scoop") == pytest.approx(40.0)  # light earth: by volume
+    assert bonus(0.9, volumetric=0.6, fill_measure="scoop") == pytest.approx(45.0)  # heavy earth: by mass
+    assert bonus(0.9, volumetric=1.2, fill_measure="scoop") == pytest.approx(50.0)
+
+
+def test_overload_cost_takes_off_the_mass_above_the_rated_load():
+    assert bonus(1.0, c_overload=100.0) == pytest.approx(50.0)
+    assert bonus(1.2, c_overload=100.0) == pytest.approx(30.0)
+    assert bonus(0.8, c_overload=100.0) == pytest.approx(40.0)
+
+
+def test_no_bonus_away_from_the_terminal_point():
+    _, terms = scoop_reward(0.3, 0.5, True, 1.0, RewardConfig(fill_measure="scoop", c_overload=10.0), 1.0)
+    assert terms["reward_mass"] == 0.0
+
+
+def test_bad_settings_name_the_key():
+    with pytest.raises(ConfigError, match="fill_measure"):
+        RewardConfig.from_dict({"fill_measure": "volume"})
+    with pytest.raises(ConfigError, match="c_overload"):
+        RewardConfig.from_dict({"c_overload": -1.0})
