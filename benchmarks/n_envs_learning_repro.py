@@ -6,7 +6,9 @@ episodes have ended; it prints the training success of each block of 50 episodes
 (``--task pendulum``) the same SB3 learns with one or two environments.
 
 Measured 2026-12-02 (SB3 2.9.2, seed 0): scoop, 1 environment: 0.02, 0.16, 0.76, 0.72, 0.86, 0.80,
-0.84, 0.82; 2 environments: 0.00 in every block, also with SB3's MlpPolicy and with no action noise.
+0.84, 0.82; 2 environments: 0.00 in every block, also with SB3's MlpPolicy and with both
+environments reset with the same seed (the same piles). (``--no-noise`` fails with one environment
+too: it needs the exploration noise.)
 Pendulum, 12,000 steps: mean return -162 with 1 environment, -170 with 2 (both learned). So the
 cause lies with two scoop environments, not with autoscoop's training loop or SB3's vectorised DDPG.
 
