@@ -13,6 +13,7 @@ import pytest
 
 from autoscoop.core.config import ConfigError, ScoopConfig
 from autoscoop.envs.scoop import ScoopEnv
+from autoscoop.sim.scene import WHEEL_RADIUS_M, WHEELS
 
 SMALL = {"pile.variants": 2}
 
@@ -26,10 +27,9 @@ def pushing_run(window: int, delay_steps: int = 0, periods: int = 16) -> tuple[S
     env = ScoopEnv(config)
     obs, _ = env.reset(seed=0)
     sim = env.sim
-    wheels = [sim.model.joint(w).dofadr[0] for w in ("wheel_fl", "wheel_fr", "wheel_rl", "wheel_rr")]
-    radius = sim.model.geom_size[sim.model.geom("wheel_fl").id, 0]
+    wheels = [sim.model.joint(w).dofadr[0] for w in WHEELS]
     instantaneous: list[float] = []
-    sim.add_substep_observer(lambda: instantaneous.append(float(sim.data.qvel[wheels].mean() * radius)))
+    sim.add_substep_observer(lambda: instantaneous.append(float(sim.data.qvel[wheels].mean() * WHEEL_RADIUS_M)))
     speeds = []
     for _ in range(periods):
         obs, _, terminated, truncated, _ = env.step(np.ones(3, dtype=np.float32))

@@ -28,14 +28,17 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
+from autoscoop.core.config import PileConfig
 from autoscoop.core.state import STATE_SIZE
 
 PRIVILEGED_NAMES = ("true_fill", "volumetric_fill", "relative_density", "torque_mass", "sensor_delay",
                     "tip_to_pile", "tip_to_terminal", "time_used")
 """The numbers appended to the state, in order (the module docstring gives their meaning)."""
 PRIVILEGED_SIZE = len(PRIVILEGED_NAMES)
-NOMINAL_PARTICLE_MASS_KG = 0.3
+NOMINAL_PARTICLE_MASS_KG = PileConfig().particle_mass_kg
+"""the paper's material, kg per particle: relative_density 1."""
 NOMINAL_DELAY_S = 0.05
+"""the scale of sensor_delay: the link of the stress suite's delay case, s."""
 
 
 def privileged_features(info: dict[str, Any], config: Any) -> np.ndarray:

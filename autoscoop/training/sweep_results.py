@@ -64,28 +64,17 @@ def plain(value: Any) -> Any:
     return item() if callable(item) and not isinstance(value, (int, float, str, bool)) else value
 
 
-def read_evaluations(run_dir: Path) -> list[dict[str, str]]:
-    """The rows of a run's ``evaluations.csv`` (none if it has none)."""
-    path = Path(run_dir) / "evaluations.csv"
+def _csv_rows(path: Path) -> list[dict[str, str]]:
+    """The rows of a CSV file with a header (none if there is no such file)."""
     if not path.is_file():
         return []
     with open(path, newline="") as handle:
         return list(csv.DictReader(handle))
 
 
-def _count_rows(path: Path) -> int:
-    if not path.is_file():
-        return 0
-    with open(path, newline="") as handle:
-        return sum(1 for _ in csv.DictReader(handle))
-
-
-def _last_wall_s(path: Path) -> float:
-    if not path.is_file():
-        return 0.0
-    with open(path, newline="") as handle:
-        rows = list(csv.DictReader(handle))
-    return float(rows[-1]["wall_s"]) if rows else 0.0
+def read_evaluations(run_dir: Path) -> list[dict[str, str]]:
+    """The rows of a run's ``evaluations.csv`` (none if it has none)."""
+    return _csv_rows(Path(run_dir) / "evaluations.csv")
 
 
 def collect_row(trial_id: str, params: dict[str, Any], swept: list[str], run_dir: Path, error: str = "") -> TrialRow:
@@ -99,7 +88,7 @@ def collect_row(trial_id: str, params: dict[str, Any], swept: list[str], run_dir
     if best_episode is None and evaluations:  # not finished: run.json lags behind; the first best, as training keeps it
         best_episode = int(max(evaluations, key=lambda r: float(r["delivered_fill"]))["episode"])
     row = next((r for r in evaluations if int(r["episode"]) == best_episode), None)
-    episodes_done = _count_rows(run_dir / "episodes.csv")
+    episodes = _csv_rows(run_dir / "episodes.csv")  # one row per training episode, with the run's clock
     if error:
         status = "error"
     elif not info:
@@ -112,8 +101,8 @@ def collect_row(trial_id: str, params: dict[str, Any], swept: list[str], run_dir
                     score=float(row["delivered_fill"]) if row else math.nan,
                     fill_factor=float(row["fill_factor"]) if row else math.nan,
                     success=float(row["success"]) if row else math.nan,
-                    best_episode=best_episode if row else None, episodes_done=episodes_done,
-                    wall_s=round(max(float(info.get("wall_s", 0.0)), _last_wall_s(run_dir / "episodes.csv")), 1),
+                    best_episode=best_episode if row else None, episodes_done=len(episodes),
+                    wall_s=round(max(float(info.get("wall_s", 0.0)), float(episodes[-1]["wall_s"]) if episodes else 0.0), 1),
                     status=status, run_dir=run_dir, error=error)
 
 
