@@ -20,9 +20,11 @@ from __future__ import annotations
 import argparse
 from functools import partial
 
+import gymnasium as gym
 import numpy as np
 import torch
 from stable_baselines3 import DDPG
+from stable_baselines3.common.buffers import ReplayBuffer
 from stable_baselines3.common.callbacks import BaseCallback
 from stable_baselines3.common.noise import OrnsteinUhlenbeckActionNoise, VectorizedActionNoise
 from stable_baselines3.common.vec_env import DummyVecEnv
@@ -34,17 +36,45 @@ from autoscoop.training.settings import load_recipe
 
 
 class Successes(BaseCallback):
-    """Collects each ended episode's success; stops after ``episodes``."""
+    """Collects each ended episode's success (of the first environment only with ``first_only``);
+    stops after ``episodes``."""
 
-    def __init__(self, episodes: int) -> None:
+    def __init__(self, episodes: int, first_only: bool = False) -> None:
         super().__init__()
-        self.episodes, self.successes = episodes, []
+        self.episodes, self.successes, self.first_only = episodes, [], first_only
 
     def _on_step(self) -> bool:
-        for done, info in zip(self.locals["dones"], self.locals["infos"]):
+        pairs = list(zip(self.locals["dones"], self.locals["infos"]))
+        for done, info in pairs[:1] if self.first_only else pairs:
             if done:
                 self.successes.append(bool(info["success"]))
         return len(self.successes) < self.episodes
+
+
+class FirstEnvironmentBuffer(ReplayBuffer):
+    """A replay buffer that keeps the first environment's transitions only (``--store first``)."""
+
+    def __init__(self, *args: object, n_envs: int = 1, **kwargs: object) -> None:
+        super().__init__(*args, n_envs=1, **kwargs)
+
+    def add(self, obs, next_obs, action, reward, done, infos) -> None:
+        super().add(obs[:1], next_obs[:1], action[:1], reward[:1], done[:1], infos[:1])
+
+
+class IdleEnv(gym.Env):
+    """A stand-in second environment (``--second idle``): zeros for 32 steps, nothing else."""
+
+    observation_space = gym.spaces.Box(-np.inf, np.inf, (12,), np.float32)
+    action_space = gym.spaces.Box(-1.0, 1.0, (3,), np.float32)
+
+    def reset(self, *, seed: int | None = None, options: dict | None = None) -> tuple[np.ndarray, dict]:
+        super().reset(seed=seed)
+        self.steps = 0
+        return np.zeros(12, np.float32), {}
+
+    def step(self, action: np.ndarray) -> tuple[np.ndarray, float, bool, bool, dict]:
+        self.steps += 1
+        return np.zeros(12, np.float32), 0.0, False, self.steps >= 32, {"success": False}
 
 
 def main() -> None:
@@ -55,11 +85,15 @@ def main() -> None:
     parser.add_argument("--task", choices=["scoop", "pendulum"], default="scoop")
     parser.add_argument("--episodes", type=int, default=400)
     parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--store", choices=["all", "first"], default="all",
+                        help="first: keep only the first environment's transitions, count only its episodes")
+    parser.add_argument("--second", choices=["scoop", "idle"], default="scoop",
+                        help="idle: the second environment is a stand-in (with --store first it changes nothing "
+                             "the learner sees; only the draws of its exploration noise remain)")
     args = parser.parse_args()
     torch.set_num_threads(1)
     n = args.n_envs
     if args.task == "pendulum":
-        import gymnasium as gym  # noqa: PLC0415
         from stable_baselines3.common.evaluation import evaluate_policy  # noqa: PLC0415
 
         vec = DummyVecEnv([partial(gym.make, "Pendulum-v1") for _ in range(n)])
@@ -70,7 +104,10 @@ def main() -> None:
         return
     spec = load_recipe("ddpg", "paper")
     config = ScoopConfig().with_overrides(spec["env"])
-    vec = DummyVecEnv([partial(make_scoop_env, config) for _ in range(n)])
+    factories = [partial(make_scoop_env, config) for _ in range(n)]
+    if n > 1 and args.second == "idle":
+        factories[1:] = [IdleEnv] * (n - 1)
+    vec = DummyVecEnv(factories)
     vec.seed(args.seed)
     noise = None
     if not args.no_noise:
@@ -78,11 +115,14 @@ def main() -> None:
                                             theta=spec["noise"]["theta"], dt=1.0)
         noise = VectorizedActionNoise(base, n) if n > 1 else base
     policy = "MlpPolicy" if args.policy == "mlp" else PaperPolicy
-    model = DDPG(policy, vec, action_noise=noise, seed=args.seed, device="cpu", **spec["hyperparams"])
-    watch = Successes(args.episodes)
+    hyperparams = dict(spec["hyperparams"])
+    if args.store == "first" and n > 1:
+        hyperparams["replay_buffer_class"] = FirstEnvironmentBuffer
+    model = DDPG(policy, vec, action_noise=noise, seed=args.seed, device="cpu", **hyperparams)
+    watch = Successes(args.episodes, first_only=args.store == "first")
     model.learn(10**8, callback=watch)
     rates = [round(float(np.mean(watch.successes[a:a + 50])), 2) for a in range(0, args.episodes, 50)]
-    print(n, "environments, training success per 50 episodes:", rates)
+    print(n, "environments, training success per 50 episodes:", rates, flush=True)
 
 
 if __name__ == "__main__":

@@ -26,8 +26,9 @@ episodes) and ``robot`` (the shipped ``default``'s: the ``robot`` randomised wor
 
 
 def load_recipe(algo: str, recipe: str = "paper") -> dict[str, Any]:
-    """The algorithm's YAML with a recipe laid over it: the recipe's ``env`` keys are added to the
-    algorithm's, its other top-level keys (``episodes``, ``demo_episodes``) set.
+    """The algorithm's YAML with a recipe laid over it: the keys of the recipe's sections (``env``,
+    ``hyperparams``, ``noise``, ``schedule``) are laid over the algorithm's, its other top-level keys
+    (``episodes``, ``demo_episodes``, ``curriculum``) set.
 
     Raises:
         ValueError: an unknown algorithm or recipe, naming the ones offered.
@@ -37,8 +38,22 @@ def load_recipe(algo: str, recipe: str = "paper") -> dict[str, Any]:
     spec = load_hyperparams(algo)
     text = (resources.files("autoscoop") / "training" / "recipes" / f"{recipe}.yaml").read_text()
     overlay = yaml.safe_load(text) or {}
-    env = {**(spec.get("env") or {}), **(overlay.pop("env", None) or {})}
-    return {**spec, **overlay, "env": env, "recipe": recipe}
+    merged = {**spec, **overlay}
+    for name, section in overlay.items():
+        if isinstance(section, dict) and isinstance(spec.get(name), dict):
+            merged[name] = {**spec[name], **section}
+    return {**merged, "env": merged.get("env") or {}, "recipe": recipe}
+
+
+def learning_rate_at(spec: dict[str, Any], fraction: float) -> float | None:
+    """The learning rate after ``fraction`` (0-1) of a run's episodes: ``hyperparams.learning_rate`` moving
+    linearly to ``schedule.learning_rate_end`` when the YAML has one; ``None`` without one (SB3's own)."""
+    end = (spec.get("schedule") or {}).get("learning_rate_end")
+    start = (spec.get("hyperparams") or {}).get("learning_rate")
+    if end is None or not isinstance(start, (int, float)):
+        return None
+    fraction = min(max(fraction, 0.0), 1.0)
+    return float(start) + fraction * (float(end) - float(start))
 
 
 def curriculum_stages(spec: dict[str, Any]) -> list[tuple[int, dict[str, Any]]]:
