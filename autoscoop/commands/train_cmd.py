@@ -60,11 +60,15 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    from autoscoop.training.checkpoints import read_run_json  # noqa: PLC0415 - torch is slow to import
     from autoscoop.training.run import TrainArgs, resume, train  # noqa: PLC0415 - torch is slow to import
 
     if args.resume:
         check_resume_options(args)
-        run_dir = resume(args.resume, progress=not args.no_progress)
+        if read_run_json(args.resume).get("status") == "finished" and selection_pending(args.resume):
+            run_dir = args.resume  # trained; killed while its snapshots were being validated
+        else:
+            run_dir = resume(args.resume, progress=not args.no_progress)
     else:
         for name, value in DEFAULTS.items():
             if getattr(args, name) is None:
@@ -88,8 +92,59 @@ def run(args: argparse.Namespace) -> int:
                                   progress=not args.no_progress, init_from=args.init, trust=args.trust,
                                   hyper=parse_set_args(args.hyper), demo_episodes=args.demo_episodes,
                                   recipe=args.recipe))
+    if selection_pending(run_dir):
+        select_kept_policy(run_dir, progress=not args.no_progress)
     print(f"run directory: {run_dir}")
     return 0
+
+
+def selection_pending(run_dir: Path) -> bool:
+    """Whether the run's recipe has a ``selection`` section and the run has not made its choice yet."""
+    import yaml  # noqa: PLC0415
+
+    from autoscoop.training.checkpoints import SELECTION_FILE  # noqa: PLC0415 - torch is slow to import
+    from autoscoop.training.settings import selection_settings  # noqa: PLC0415
+
+    spec_path = run_dir / "hyperparams.yaml"
+    if not spec_path.is_file() or (run_dir / SELECTION_FILE).exists():
+        return False
+    return selection_settings(yaml.safe_load(spec_path.read_text()) or {}) is not None
+
+
+def select_kept_policy(run_dir: Path, progress: bool = True) -> None:
+    """The recipe's ``selection``: validate the run's best snapshots of its last curriculum world on every stress
+    case and keep the one that falls least short (:mod:`autoscoop.evaluation.selection`); ``selection.json``
+    records each candidate's figures."""
+    import os  # noqa: PLC0415
+
+    import yaml  # noqa: PLC0415
+
+    from autoscoop.evaluation.selection import rank_candidates  # noqa: PLC0415 - torch is slow to import
+    from autoscoop.training.checkpoints import keep_snapshot, lock_run_dir, snapshot_candidates  # noqa: PLC0415
+    from autoscoop.training.settings import curriculum_stages, selection_settings  # noqa: PLC0415
+
+    spec = yaml.safe_load((run_dir / "hyperparams.yaml").read_text())
+    settings = selection_settings(spec)
+    stages = curriculum_stages(spec)
+    last_world_from = stages[-1][0] if stages else 0
+    with lock_run_dir(run_dir):
+        candidates = snapshot_candidates(run_dir, settings.candidates, last_world_from)
+        if not candidates:
+            print(f"selection: no evaluated snapshot after episode {last_world_from}; the run keeps its policy")
+            return
+        ranked = rank_candidates([(f"episode {episode}", path) for episode, _, path in candidates],
+                                 settings.episodes, settings.seed, workers=min(os.cpu_count() or 1, 4),
+                                 progress=progress)
+        periodic = {path.name: score for _, score, path in candidates}
+        best = ranked[0]
+        episode = int(best.path.stem.removeprefix("episode_"))
+        record = {"settings": {"candidates": settings.candidates, "episodes": settings.episodes,
+                               "seed": settings.seed, "after_episode": last_world_from},
+                  "selected_episode": episode,
+                  "candidates": [{**r.summary(), "periodic_score": periodic[r.path.name]} for r in ranked]}
+        keep_snapshot(run_dir, episode, record)
+    print(f"selection: kept the snapshot of episode {episode} ({best.cases_passed} of {len(best.rows)} cases hold "
+          f"on validation seeds {settings.seed}-{settings.seed + settings.episodes - 1}, shortfall {best.shortfall:.3f})")
 
 
 def check_resume_options(args: argparse.Namespace) -> None:

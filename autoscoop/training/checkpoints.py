@@ -7,6 +7,7 @@ counters and how its tensors nest, each file's SHA-256), ``tensors.safetensors``
 
 from __future__ import annotations
 
+import csv
 import json
 import math
 import os
@@ -56,7 +57,7 @@ BOOKKEEPING = ("episodes_done", "evaluations_done", "wall_s", "best_score", "bes
 """what a checkpoint records of the run: episodes and evaluations done (rows of ``episodes.csv`` and
 ``evaluations.csv``), wall time so far (s), the best evaluation score and its episode (``None`` before one)."""
 RUN_OUTPUTS = ("episodes.csv", "evaluations.csv", *BEST_FILES, "last.safetensors", "last.json", "learning_curve.png",
-               "evaluated", "tb", *CHECKPOINT_DIRS)
+               "evaluated", "tb", "selection.json", *CHECKPOINT_DIRS)
 """what training writes into a run directory after its settings (cleared when a run restarts from episode 0)."""
 
 
@@ -252,6 +253,46 @@ def drop_evaluated_after(folder: Path, episodes: int) -> None:
         number = path.stem.removeprefix("episode_")
         if number.isdigit() and int(number) > episodes:
             path.unlink()
+
+
+SELECTION_FILE = "selection.json"
+"""the validation of a run's best snapshots and which one it kept (a recipe with a ``selection`` section)."""
+
+
+def snapshot_candidates(run_dir: Path, count: int, after_episode: int = 0) -> list[tuple[int, float, Path]]:
+    """The ``count`` best evaluated snapshots of a run after ``after_episode``: (episode, periodic score, actor
+    file), highest ``delivered_fill`` in ``evaluations.csv`` first (the later episode first on a tie), only
+    those whose actor file ``evaluated/episode_NNNNN.safetensors`` exists."""
+    path = run_dir / "evaluations.csv"
+    if not path.is_file():
+        return []
+    with path.open(newline="") as handle:
+        rows = [(int(row["episode"]), float(row["delivered_fill"])) for row in csv.DictReader(handle)]
+    rows = [(episode, score) for episode, score in rows if episode > after_episode]
+    rows.sort(key=lambda item: (-item[1], -item[0]))
+    found = []
+    for episode, score in rows:
+        actor = run_dir / "evaluated" / f"episode_{episode:05d}.safetensors"
+        if actor.is_file() and actor.with_suffix(".json").is_file():
+            found.append((episode, score, actor))
+        if len(found) == count:
+            break
+    return found
+
+
+def keep_snapshot(run_dir: Path, episode: int, record: dict[str, Any]) -> None:
+    """Make snapshot ``episode`` the run's policy: copy its actor and metadata over ``policy.safetensors`` and
+    ``policy.json``, write ``record`` to ``selection.json`` and the episode to ``run.json``
+    (``selected_episode``). ``policy.zip`` stays the best periodic evaluation's full model (fine-tuning's start)."""
+    actor = run_dir / "evaluated" / f"episode_{episode:05d}.safetensors"
+    for source, target in ((actor, run_dir / "policy.safetensors"), (actor.with_suffix(".json"), run_dir / "policy.json")):
+        tmp = target.with_name(target.name + ".tmp")
+        shutil.copyfile(source, tmp)
+        os.replace(tmp, target)
+    info = read_run_json(run_dir)
+    info["selected_episode"] = episode
+    write_run_json(run_dir, info)
+    _write_json_atomically(run_dir / SELECTION_FILE, record)
 
 
 def write_run_json(run_dir: Path, info: dict[str, Any]) -> None:

@@ -3,6 +3,7 @@
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from importlib import resources
 from typing import Any
 
@@ -54,6 +55,35 @@ def learning_rate_at(spec: dict[str, Any], fraction: float) -> float | None:
         return None
     fraction = min(max(fraction, 0.0), 1.0)
     return float(start) + fraction * (float(end) - float(start))
+
+
+@dataclass(frozen=True)
+class SelectionSettings:
+    """A recipe's ``selection`` section: after training, the ``candidates`` best snapshots by the periodic
+    evaluation (in the last curriculum world) run every stress case ``episodes`` times from seed ``seed``,
+    and the run keeps the one that falls least short (:mod:`autoscoop.evaluation.selection`)."""
+
+    candidates: int
+    episodes: int
+    seed: int
+
+
+def selection_settings(spec: dict[str, Any]) -> SelectionSettings | None:
+    """The YAML's ``selection`` section, ``None`` without one.
+
+    Raises:
+        ValueError: a missing or non-integer key, or one below its minimum (candidates, episodes >= 1; seed >= 0).
+    """
+    section = spec.get("selection")
+    if not section:
+        return None
+    values = {}
+    for key, least in (("candidates", 1), ("episodes", 1), ("seed", 0)):
+        value = section.get(key) if isinstance(section, dict) else None
+        if not isinstance(value, int) or isinstance(value, bool) or value < least:
+            raise ValueError(f"selection.{key} must be a whole number >= {least}, got {value!r}")
+        values[key] = value
+    return SelectionSettings(**values)
 
 
 def curriculum_stages(spec: dict[str, Any]) -> list[tuple[int, dict[str, Any]]]:

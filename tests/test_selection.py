@@ -1,0 +1,105 @@
+"""Choosing the kept policy among a run's snapshots on a validation suite (a recipe's ``selection``)."""
+
+import json
+import math
+
+import pytest
+
+from autoscoop.cli import main
+from autoscoop.envs.outcome import EpisodeOutcome
+from autoscoop.evaluation.selection import delivered_fill, threshold_shortfall, total_shortfall
+from autoscoop.evaluation.stress import CASES, StressRow
+from autoscoop.training.checkpoints import keep_snapshot, snapshot_candidates
+from autoscoop.training.settings import selection_settings
+
+
+def row(case_name: str, **stats: float) -> StressRow:
+    case = next(c for c in CASES if c.name == case_name)
+    base = {"fill_factor_mean": 0.8, "volumetric_fill_mean": 0.7, "success_rate": 1.0, "overload_rate": 0.0,
+            "cycle_time_mean": 4.5}
+    return StressRow(case, {**base, **stats})
+
+
+def test_shortfall_adds_the_missing_margins_and_is_zero_when_every_threshold_holds():
+    assert threshold_shortfall(row("heavy")) == 0.0
+    assert threshold_shortfall(row("nominal")) == 0.0
+    # success 0.85 (0.05 short), overload 0.15 (0.10 over): 0.15
+    assert threshold_shortfall(row("heavy", success_rate=0.85, overload_rate=0.15)) == pytest.approx(0.15)
+    # nominal: fill 0.70 (0.05 short) and a cycle of 6 s (1 s over, a fifth of a unit)
+    assert threshold_shortfall(row("nominal", fill_factor_mean=0.70, cycle_time_mean=6.0)) == pytest.approx(0.25)
+    # no successful episode: the cycle time is NaN and counts as one whole unit
+    assert threshold_shortfall(row("nominal", success_rate=0.0, cycle_time_mean=math.nan)) == pytest.approx(0.97 + 1.0)
+    rows = [row("heavy", success_rate=0.85), row("light", volumetric_fill_mean=0.5), row("angle_40")]
+    assert total_shortfall(rows) == pytest.approx(0.15)
+
+
+def test_delivered_fill_counts_failures_as_empty_and_caps_an_overload():
+    def outcome(fill: float, success: bool) -> EpisodeOutcome:
+        return EpisodeOutcome(seed=0, fill_factor=fill, mass_kg=fill * 7, particles=0, success=success,
+                              cycle_time_s=4.0 if success else None, spilled=0, physics_error=False, steps=16,
+                              episode_return=0.0)
+
+    stress_row = StressRow(CASES[0], {}, [outcome(0.8, True), outcome(1.2, True), outcome(0.9, False)])
+    assert delivered_fill(stress_row) == pytest.approx((0.8 + 1.0 + 0.0) / 3)
+
+
+def test_selection_settings_are_checked():
+    assert selection_settings({}) is None
+    settings = selection_settings({"selection": {"candidates": 3, "episodes": 5, "seed": 20000}})
+    assert (settings.candidates, settings.episodes, settings.seed) == (3, 5, 20000)
+    with pytest.raises(ValueError, match="selection.episodes"):
+        selection_settings({"selection": {"candidates": 3, "episodes": 0, "seed": 1}})
+    with pytest.raises(ValueError, match="selection.seed"):
+        selection_settings({"selection": {"candidates": 3, "episodes": 2}})
+
+
+def test_candidates_are_the_best_snapshots_of_the_last_world_and_keeping_one_makes_it_the_policy(tmp_path):
+    run = tmp_path / "run"
+    (run / "evaluated").mkdir(parents=True)
+    rows = [(50, 0.9), (100, 0.2), (150, 0.6), (200, 0.6), (250, 0.1), (300, 0.5)]
+    (run / "evaluations.csv").write_text("episode,delivered_fill,fill_factor,success,cycle_time_s\n" + "".join(
+        f"{episode},{score},{score},1.0,4.0\n" for episode, score in rows))
+    for episode, _ in rows:
+        if episode != 300:  # a snapshot whose actor file is missing is skipped
+            (run / "evaluated" / f"episode_{episode:05d}.safetensors").write_bytes(b"w%d" % episode)
+            (run / "evaluated" / f"episode_{episode:05d}.json").write_text(json.dumps({"episode": episode}))
+    (run / "run.json").write_text(json.dumps({"status": "finished", "best_episode": 50}))
+    found = snapshot_candidates(run, count=3, after_episode=100)
+    assert [(episode, score) for episode, score, _ in found] == [(200, 0.6), (150, 0.6), (250, 0.1)]
+    keep_snapshot(run, 150, {"selected_episode": 150})
+    assert (run / "policy.safetensors").read_bytes() == b"w150"
+    assert json.loads((run / "policy.json").read_text()) == {"episode": 150}
+    assert json.loads((run / "run.json").read_text())["selected_episode"] == 150
+    assert json.loads((run / "selection.json").read_text()) == {"selected_episode": 150}
+
+
+def test_a_recipe_with_selection_validates_its_snapshots_and_a_resume_finishes_the_choice(tmp_path, monkeypatch):
+    """The train command runs the recipe's selection after training; a run killed during it (finished, no
+    selection.json) gets it from ``--resume``, with the same choice."""
+    from autoscoop.training import run as train_mod
+    from autoscoop.training import settings
+
+    original = settings.load_recipe
+    monkeypatch.setattr(train_mod, "load_recipe", lambda algo, recipe: {
+        **original(algo, "paper"), "selection": {"candidates": 2, "episodes": 1, "seed": 20000}})
+    out = tmp_path / "run"
+    assert main(["train", "--episodes", "4", "--eval-every", "2", "--eval-episodes", "1", "--out", str(out),
+                 "--set", "pile.variants=2", "--no-progress"]) == 0
+    record = json.loads((out / "selection.json").read_text())
+    assert record["settings"] == {"candidates": 2, "episodes": 1, "seed": 20000, "after_episode": 0}
+    assert sorted(c["name"] for c in record["candidates"]) == ["episode 2", "episode 4"]
+    assert all(c["cases"] == len(CASES) for c in record["candidates"])
+    shortfalls = [c["shortfall"] for c in record["candidates"]]
+    assert shortfalls == sorted(shortfalls)  # best first
+    chosen = record["selected_episode"]
+    assert record["candidates"][0]["name"] == f"episode {chosen}"
+    assert json.loads((out / "run.json").read_text())["selected_episode"] == chosen
+    snapshot = out / "evaluated" / f"episode_{chosen:05d}.safetensors"
+    assert (out / "policy.safetensors").read_bytes() == snapshot.read_bytes()
+
+    (out / "selection.json").unlink()  # as if killed while validating
+    (out / "policy.safetensors").write_bytes(b"stale")
+    assert main(["train", "--resume", str(out), "--no-progress"]) == 0
+    assert json.loads((out / "selection.json").read_text())["selected_episode"] == chosen
+    assert (out / "policy.safetensors").read_bytes() == snapshot.read_bytes()
+    assert main(["train", "--resume", str(out), "--no-progress"]) == 2  # now finished and chosen: nothing to do
