@@ -12,7 +12,21 @@ too: it needs the exploration noise.)
 Pendulum, 12,000 steps: mean return -162 with 1 environment, -170 with 2 (both learned). So the
 cause lies with two scoop environments, not with autoscoop's training loop or SB3's vectorised DDPG.
 
-    .venv/bin/python benchmarks/n_envs_learning_repro.py --n-envs 2 [--policy mlp] [--no-noise]
+Measured again 2026-12-02 (a later session), 300 episodes, seeds 0-7: 1 environment learned in 4 of 8
+seeds (0, 1, 4, 6: success 0.84, 0.86, 0.94, 0.82 in the last 50 episodes); 2 environments in 0 of 8,
+and in 0 of 8 with ``--gradient-steps 2`` (one update per transition, as with one environment). With
+150 episodes of the kept environment counted (seeds 0-5): storing the first environment's transitions
+only (``--store first``; the second acts but is not learned from) learned in 1 of 6 (seed 3), the second's
+only (``--store second``) in 1 of 6 (seed 3), one environment alone in 2 of 6 (seeds 0, 1); ``--store first --second
+idle`` (a stand-in second environment of zeros) gives seed 0's run bit for bit as ``--store first``, so
+acting in two environments and the second's exploration noise do not break learning. Both environments'
+transitions in a one-environment buffer (``--store flat --gradient-steps 2``) did not learn (seeds 0, 1),
+so SB3's two-environment buffer layout is not the cause either. What breaks it is learning from both
+environments' transitions at once; why is still open. With 50 scripted scoops in the replay buffer
+(``autoscoop train --recipe robot --n-envs 2``) two environments do learn (seed 10).
+
+    .venv/bin/python benchmarks/n_envs_learning_repro.py --n-envs 2 [--policy mlp] [--no-noise] [--episodes 300]
+        [--seed S] [--gradient-steps 2] [--store first|second|flat] [--second idle]
 """
 
 from __future__ import annotations
@@ -36,29 +50,38 @@ from autoscoop.training.settings import load_recipe
 
 
 class Successes(BaseCallback):
-    """Collects each ended episode's success (of the first environment only with ``first_only``);
-    stops after ``episodes``."""
+    """Collects each ended episode's success (of environment ``only`` alone when given); stops after ``episodes``."""
 
-    def __init__(self, episodes: int, first_only: bool = False) -> None:
+    def __init__(self, episodes: int, only: int | None = None) -> None:
         super().__init__()
-        self.episodes, self.successes, self.first_only = episodes, [], first_only
+        self.episodes, self.successes, self.only = episodes, [], only
 
     def _on_step(self) -> bool:
         pairs = list(zip(self.locals["dones"], self.locals["infos"]))
-        for done, info in pairs[:1] if self.first_only else pairs:
+        for done, info in pairs if self.only is None else pairs[self.only:self.only + 1]:
             if done:
                 self.successes.append(bool(info["success"]))
         return len(self.successes) < self.episodes
 
 
-class FirstEnvironmentBuffer(ReplayBuffer):
-    """A replay buffer that keeps the first environment's transitions only (``--store first``)."""
+class OneLayoutBuffer(ReplayBuffer):
+    """A replay buffer in the one-environment layout that keeps the transitions of the environments in
+    ``KEEP`` (``--store first``: the first only; ``second``: the second only; ``flat``: every one, a row each)."""
+
+    KEEP: slice = slice(0, 1)
 
     def __init__(self, *args: object, n_envs: int = 1, **kwargs: object) -> None:
         super().__init__(*args, n_envs=1, **kwargs)
 
     def add(self, obs, next_obs, action, reward, done, infos) -> None:
-        super().add(obs[:1], next_obs[:1], action[:1], reward[:1], done[:1], infos[:1])
+        for i in range(len(obs))[self.KEEP]:
+            super().add(obs[i:i + 1], next_obs[i:i + 1], action[i:i + 1], reward[i:i + 1], done[i:i + 1],
+                        infos[i:i + 1])
+
+
+BUFFERS = {"first": type("FirstOnly", (OneLayoutBuffer,), {"KEEP": slice(0, 1)}),
+           "second": type("SecondOnly", (OneLayoutBuffer,), {"KEEP": slice(1, 2)}),
+           "flat": type("EveryOne", (OneLayoutBuffer,), {"KEEP": slice(None)})}
 
 
 class IdleEnv(gym.Env):
@@ -85,8 +108,11 @@ def main() -> None:
     parser.add_argument("--task", choices=["scoop", "pendulum"], default="scoop")
     parser.add_argument("--episodes", type=int, default=400)
     parser.add_argument("--seed", type=int, default=0)
-    parser.add_argument("--store", choices=["all", "first"], default="all",
-                        help="first: keep only the first environment's transitions, count only its episodes")
+    parser.add_argument("--gradient-steps", type=int, default=None,
+                        help="gradient steps per vector step (default: the recipe's, 1; N for one per transition)")
+    parser.add_argument("--store", choices=["all", "first", "second", "flat"], default="all",
+                        help="first / second: keep only that environment's transitions and count only its "
+                             "episodes; flat: keep both in a one-environment buffer, a row each (count the first's)")
     parser.add_argument("--second", choices=["scoop", "idle"], default="scoop",
                         help="idle: the second environment is a stand-in (with --store first it changes nothing "
                              "the learner sees; only the draws of its exploration noise remain)")
@@ -116,10 +142,12 @@ def main() -> None:
         noise = VectorizedActionNoise(base, n) if n > 1 else base
     policy = "MlpPolicy" if args.policy == "mlp" else PaperPolicy
     hyperparams = dict(spec["hyperparams"])
-    if args.store == "first" and n > 1:
-        hyperparams["replay_buffer_class"] = FirstEnvironmentBuffer
+    if args.gradient_steps is not None:
+        hyperparams["gradient_steps"] = args.gradient_steps
+    if args.store != "all" and n > 1:
+        hyperparams["replay_buffer_class"] = BUFFERS[args.store]
     model = DDPG(policy, vec, action_noise=noise, seed=args.seed, device="cpu", **hyperparams)
-    watch = Successes(args.episodes, first_only=args.store == "first")
+    watch = Successes(args.episodes, only={"all": None, "second": 1}.get(args.store, 0) if n > 1 else None)
     model.learn(10**8, callback=watch)
     rates = [round(float(np.mean(watch.successes[a:a + 50])), 2) for a in range(0, args.episodes, 50)]
     print(n, "environments, training success per 50 episodes:", rates, flush=True)
