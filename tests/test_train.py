@@ -370,40 +370,6 @@ def test_recipes_lay_over_the_algorithms_yaml():
         curriculum_stages({"curriculum": [{"episode": 3, "set": {"pile.angle_deg": 25}}]})
 
 
-def test_the_learning_rate_follows_the_schedule_over_the_episodes(tmp_path, monkeypatch):
-    """``schedule.learning_rate_end``: the optimisers' rate moves linearly from ``hyperparams.learning_rate``
-    to it over the run's episodes; without it SB3's constant rate stays."""
-    from autoscoop.training import run as train_mod
-    from autoscoop.training import settings
-    from autoscoop.training.callbacks import EpisodeLogger
-
-    assert settings.learning_rate_at({"hyperparams": {"learning_rate": 1e-3}}, 0.5) is None
-    spec = {"hyperparams": {"learning_rate": 1e-3}, "schedule": {"learning_rate_end": 1e-4}}
-    assert settings.learning_rate_at(spec, 0.0) == pytest.approx(1e-3)
-    assert settings.learning_rate_at(spec, 0.5) == pytest.approx(5.5e-4)
-    assert settings.learning_rate_at(spec, 2.0) == pytest.approx(1e-4)
-
-    original = settings.load_recipe
-    monkeypatch.setattr(train_mod, "load_recipe", lambda algo, recipe: {
-        **original(algo, "paper"), "schedule": {"learning_rate_end": 1e-4}})
-    rates: list[tuple[int, float]] = []
-    end = EpisodeLogger.end_episode
-
-    def watch(self, env_index, info):
-        end(self, env_index, info)
-        rates.append((self.done, self.model.actor.optimizer.param_groups[0]["lr"]))
-
-    monkeypatch.setattr(EpisodeLogger, "end_episode", watch)
-    train_mod.train(train_mod.TrainArgs(episodes=4, out=tmp_path / "run", progress=False,
-                                        overrides={"pile.variants": 2}, eval_every=0, checkpoint_every=10,
-                                        hyper={"hyperparams.learning_starts": "1"}))
-    # the rate an optimiser holds after episode k is the one set after episode k - 1 (SB3 applies it per update)
-    assert [done for done, _ in rates] == [1, 2, 3, 4]
-    assert rates[1][1] == pytest.approx(settings.learning_rate_at(spec, 1 / 4))
-    assert rates[3][1] == pytest.approx(settings.learning_rate_at(spec, 3 / 4))
-    assert rates[3][1] < rates[1][1] < 1e-3
-
-
 def test_a_curriculum_switches_the_training_and_evaluation_world(tmp_path, monkeypatch):
     """After the stage's episode the environments draw randomised worlds and the kept policy is chosen again."""
     from autoscoop.training import run as train_mod

@@ -14,7 +14,6 @@ from typing import Any
 
 import numpy as np
 from stable_baselines3.common.callbacks import BaseCallback
-from stable_baselines3.common.utils import ConstantSchedule
 from tqdm import tqdm
 
 from autoscoop.agents.loading import SB3Policy
@@ -23,7 +22,6 @@ from autoscoop.envs.rollout import rollout
 from autoscoop.envs.scoop import make_scoop_env
 from autoscoop.training.checkpoints import actor_meta, save_checkpoint, save_safe_actor, write_run_json
 from autoscoop.training.factories import set_noise_scale
-from autoscoop.training.settings import learning_rate_at
 
 CSV_FIELDS = ["episode", "reward", "fill_factor", "cycle_time_s", "success", "steps", "spilled", "physics_error",
               "wall_s"]
@@ -81,16 +79,11 @@ class EpisodeLogger(BaseCallback):
             self.evaluator.evaluate(self.model, 0, self.logger)
 
     def _update_noise(self) -> None:
-        """The exploration noise's scale and the learning rate (``schedule.learning_rate_end``) for the episodes done."""
-        fraction = min(self.done / max(self.episodes, 1), 1.0)
         noise_spec = self.spec.get("noise")
         noise = getattr(self.model, "action_noise", None)
         if noise_spec and noise is not None:
+            fraction = min(self.done / max(self.episodes, 1), 1.0)
             set_noise_scale(noise, noise_spec["sigma_start"] + fraction * (noise_spec["sigma_end"] - noise_spec["sigma_start"]))
-        learning_rate = learning_rate_at(self.spec, fraction)
-        if learning_rate is not None:  # SB3 sets the optimisers' rate from lr_schedule before each update
-            self.model.learning_rate = learning_rate
-            self.model.lr_schedule = ConstantSchedule(learning_rate)
 
     def _on_step(self) -> bool:
         rewards, dones, infos = self.locals["rewards"], self.locals["dones"], self.locals["infos"]

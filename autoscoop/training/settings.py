@@ -46,17 +46,6 @@ def load_recipe(algo: str, recipe: str = "paper") -> dict[str, Any]:
     return {**merged, "env": merged.get("env") or {}, "recipe": recipe}
 
 
-def learning_rate_at(spec: dict[str, Any], fraction: float) -> float | None:
-    """The learning rate after ``fraction`` (0-1) of a run's episodes: ``hyperparams.learning_rate`` moving
-    linearly to ``schedule.learning_rate_end`` when the YAML has one; ``None`` without one (SB3's own)."""
-    end = (spec.get("schedule") or {}).get("learning_rate_end")
-    start = (spec.get("hyperparams") or {}).get("learning_rate")
-    if end is None or not isinstance(start, (int, float)):
-        return None
-    fraction = min(max(fraction, 0.0), 1.0)
-    return float(start) + fraction * (float(end) - float(start))
-
-
 @dataclass(frozen=True)
 class SelectionSettings:
     """A recipe's ``selection`` section: after training, the ``candidates`` best snapshots by the periodic
