@@ -36,6 +36,8 @@ def main() -> int:
     metrics = {"source_run": args.run_dir.name, "source_file": str(source.relative_to(args.run_dir)), "algo": run["algo"], "seed": run["seed"],
                "training_episodes": run["episodes"], "training_wall_s": run.get("wall_s"),
                "training_config": (args.run_dir / "config.yaml").read_text(), "piles": {}}
+    if "selected_episode" in run:  # the recipe's selection chose this snapshot (selection.json in the run)
+        metrics["selected_episode"] = run["selected_episode"]
     if args.note:
         metrics["note"] = args.note
     for angle in args.angles:

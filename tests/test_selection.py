@@ -87,6 +87,7 @@ def test_a_recipe_with_selection_validates_its_snapshots_and_a_resume_finishes_t
                  "--set", "pile.variants=2", "--no-progress"]) == 0
     record = json.loads((out / "selection.json").read_text())
     assert record["settings"] == {"candidates": 2, "episodes": 1, "seed": 20000, "after_episode": 0}
+    assert record["wall_s"] > 0
     assert sorted(c["name"] for c in record["candidates"]) == ["episode 2", "episode 4"]
     assert all(c["cases"] == len(CASES) for c in record["candidates"])
     shortfalls = [c["shortfall"] for c in record["candidates"]]

@@ -116,6 +116,7 @@ def select_kept_policy(run_dir: Path, progress: bool = True) -> None:
     case and keep the one that falls least short (:mod:`autoscoop.evaluation.selection`); ``selection.json``
     records each candidate's figures."""
     import os  # noqa: PLC0415
+    import time  # noqa: PLC0415
 
     import yaml  # noqa: PLC0415
 
@@ -127,6 +128,7 @@ def select_kept_policy(run_dir: Path, progress: bool = True) -> None:
     settings = selection_settings(spec)
     stages = curriculum_stages(spec)
     last_world_from = stages[-1][0] if stages else 0
+    started = time.time()
     with lock_run_dir(run_dir):
         candidates = snapshot_candidates(run_dir, settings.candidates, last_world_from)
         if not candidates:
@@ -140,7 +142,7 @@ def select_kept_policy(run_dir: Path, progress: bool = True) -> None:
         episode = int(best.path.stem.removeprefix("episode_"))
         record = {"settings": {"candidates": settings.candidates, "episodes": settings.episodes,
                                "seed": settings.seed, "after_episode": last_world_from},
-                  "selected_episode": episode,
+                  "selected_episode": episode, "wall_s": round(time.time() - started, 1),
                   "candidates": [{**r.summary(), "periodic_score": periodic[r.path.name]} for r in ranked]}
         keep_snapshot(run_dir, episode, record)
     print(f"selection: kept the snapshot of episode {episode} ({best.cases_passed} of {len(best.rows)} cases hold "
