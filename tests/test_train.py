@@ -398,3 +398,13 @@ def test_a_curriculum_switches_the_training_and_evaluation_world(tmp_path, monke
     assert [row["episode"] for row in rows] == ["3", "6"]
     info = json.loads((out / "run.json").read_text())
     assert info["best_episode"] == 6  # chosen again in the randomised world, whatever episode 3 scored
+
+
+def test_two_environments_without_demonstrations_are_warned_about(tmp_path, capsys):
+    """``--n-envs 2`` trains, and says that without scripted scoops it did not learn (README, Speed); with them, no warning."""
+    assert main(["train", "--episodes", "2", "--n-envs", "2", "--eval-every", "0", "--out", str(tmp_path / "a"),
+                 *FAST]) == 0
+    assert "--n-envs 2 without scripted demonstrations" in capsys.readouterr().err
+    assert main(["train", "--episodes", "2", "--n-envs", "2", "--eval-every", "0", "--demo-episodes", "1",
+                 "--out", str(tmp_path / "b"), *FAST]) == 0
+    assert "without scripted demonstrations" not in capsys.readouterr().err

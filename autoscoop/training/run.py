@@ -124,6 +124,10 @@ def train(args: TrainArgs) -> Path:
     if privileged_critic(spec) and (ALGORITHMS[args.algo] is PPO or spec.get("policy") != "paper"):
         raise ValueError("privileged_critic needs the paper's actor-critic (policy: paper) and ddpg, td3 or sac: "
                          "only its actor reads the state alone")
+    if args.n_envs > 1 and not demos and ALGORITHMS[args.algo] is not PPO and not args.init_from:
+        print(f"warning: --n-envs {args.n_envs} without scripted demonstrations: off-policy learners from random "
+              "weights learned to scoop with two environments in 0 of 8 seeds (README, Speed); add "
+              "--demo-episodes 20 or train with --n-envs 1", file=sys.stderr)
     config = ScoopConfig().with_overrides({**(spec.get("env") or {}), **args.overrides})
     config_at(config, spec, args.episodes)  # a curriculum's stages are checked before anything starts
     init_zip = init_model_zip(args.init_from, args.algo, args.trust) if args.init_from else None
