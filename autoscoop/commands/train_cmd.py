@@ -137,13 +137,13 @@ def select_kept_policy(run_dir: Path, progress: bool = True) -> None:
         ranked = rank_candidates([(f"episode {episode}", path) for episode, _, path in candidates],
                                  settings.episodes, settings.seed, workers=min(os.cpu_count() or 1, 4),
                                  progress=progress)
-        periodic = {path.name: score for _, score, path in candidates}
+        periodic = {path: score for _, score, path in candidates}
         best = ranked[0]
-        episode = int(best.path.stem.removeprefix("episode_"))
+        episode = next(number for number, _, path in candidates if path == best.path)
         record = {"settings": {"candidates": settings.candidates, "episodes": settings.episodes,
                                "seed": settings.seed, "after_episode": last_world_from},
                   "selected_episode": episode, "wall_s": round(time.time() - started, 1),
-                  "candidates": [{**r.summary(), "periodic_score": periodic[r.path.name]} for r in ranked]}
+                  "candidates": [{**r.summary(), "periodic_score": periodic[r.path]} for r in ranked]}
         keep_snapshot(run_dir, episode, record)
     print(f"selection: kept the snapshot of episode {episode} ({best.cases_passed} of {len(best.rows)} cases hold "
           f"on validation seeds {settings.seed}-{settings.seed + settings.episodes - 1}, shortfall {best.shortfall:.3f})")
