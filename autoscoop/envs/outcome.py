@@ -57,6 +57,12 @@ class EpisodeOutcome:
     overloaded: bool = False
     world: dict[str, Any] = field(default_factory=dict)
 
+    @property
+    def delivered_fill(self) -> float:
+        """The fill factor this scoop delivered: capped at the rated load (as the reward pays) when it succeeded,
+        0 when it did not."""
+        return min(self.fill_factor, 1.0) if self.success else 0.0
+
     @classmethod
     def from_info(cls, info: Mapping[str, Any], *, seed: int, steps: int, episode_return: float) -> EpisodeOutcome:
         """The outcome from the last ``info`` of an episode of ``autoscoop/Scoop-v0`` (or an info of the same keys)."""

@@ -50,7 +50,7 @@ def total_shortfall(rows: Sequence[StressRow]) -> float:
 
 def delivered_fill(row: StressRow) -> float:
     """A case's mean delivered fill: the fill factor, capped at the rated load, of successful episodes, 0 for the rest."""
-    return float(np.mean([min(o.fill_factor, 1.0) if o.success else 0.0 for o in row.outcomes])) if row.outcomes else 0.0
+    return float(np.mean([o.delivered_fill for o in row.outcomes])) if row.outcomes else 0.0
 
 
 @dataclass
