@@ -32,6 +32,15 @@ def test_overload_cost_takes_off_the_mass_above_the_rated_load():
     assert bonus(0.8, c_overload=100.0) == pytest.approx(40.0)
 
 
+def test_overload_margin_makes_the_bonus_peak_short_of_the_rated_load():
+    # reward.overload_from 0.9: heavy earth's bonus is highest at w = 0.9, and falls c_overload per unit above
+    assert bonus(0.9, c_overload=100.0, overload_from=0.9) == pytest.approx(45.0)
+    assert bonus(1.0, c_overload=100.0, overload_from=0.9) == pytest.approx(40.0)
+    assert bonus(0.8, c_overload=100.0, overload_from=0.9) == pytest.approx(40.0)
+    peak = max((bonus(w / 100, c_overload=100.0, overload_from=0.9), w / 100) for w in range(50, 130))
+    assert peak[1] == pytest.approx(0.9)
+
+
 def test_no_bonus_away_from_the_terminal_point():
     _, terms = scoop_reward(0.3, 0.5, True, 1.0, RewardConfig(fill_measure="scoop", c_overload=10.0), 1.0)
     assert terms["reward_mass"] == 0.0
@@ -42,3 +51,5 @@ def test_bad_settings_name_the_key():
         RewardConfig.from_dict({"fill_measure": "volume"})
     with pytest.raises(ConfigError, match="c_overload"):
         RewardConfig.from_dict({"c_overload": -1.0})
+    with pytest.raises(ConfigError, match="overload_from"):
+        RewardConfig.from_dict({"overload_from": 0.1})

@@ -317,8 +317,10 @@ class RewardConfig(ConfigModel):
     fill_measure: Literal["mass", "scoop"] = setting(
         "mass", "-", "what the bonus pays for: mass (c_w * min(w, 1), the paper's) or scoop (c_w * min(max(w, "
         "volumetric fill), 1): a bucket full by volume pays as much as one full by mass)")
-    c_overload: float = setting(0.0, "-", "the bonus falls by c_overload * (w - 1) for mass above the rated load",
-                                0.0, 1000.0)
+    c_overload: float = setting(0.0, "-", "the bonus falls by c_overload * (w - overload_from) for mass above "
+                                "overload_from", 0.0, 1000.0)
+    overload_from: float = setting(1.0, "-", "fill factor w from which mass costs c_overload per unit (1: the rated "
+                                   "load; below 1 the bonus peaks short of it, a margin for heavy earth)", 0.5, 2.0)
 
 
 class EnvConfig(ConfigModel):

@@ -12,8 +12,9 @@ s = 1 m leaves P_t between 0.8 and 1, a weak signal; a smaller s sharpens it).
 Two additions for a world whose material varies (both off by default, the paper's reward):
 ``reward.fill_measure = scoop`` pays c_w * min(max(w_t, v_t), 1), v_t the volumetric fill, the
 measure of a scoop's success (light earth fills the bucket by volume before it reaches the rated
-mass); ``reward.c_overload`` > 0 takes c_overload * (w_t - 1) off the bonus for mass above the
-rated load.
+mass); ``reward.c_overload`` > 0 takes c_overload * (w_t - w_o) off the bonus for mass above
+w_o = ``reward.overload_from`` (1 by default: the rated load; below 1 the bonus peaks short of the
+rated load, so that a scoop of heavy earth aims under it with room for the scatter of a scoop).
 """
 
 from __future__ import annotations
@@ -49,6 +50,6 @@ def scoop_reward(tip_to_pile_m: float, tip_to_terminal_m: float, penetrating: bo
     if tip_to_terminal_m <= config.epsilon_m:
         fill = max(w, volumetric_fill) if config.fill_measure == "scoop" else w
         mass = config.c_w * min(fill, 1.0)  # no more for an overload
-        if config.c_overload and w > 1.0:
-            mass -= config.c_overload * (w - 1.0)
+        if config.c_overload and w > config.overload_from:
+            mass -= config.c_overload * (w - config.overload_from)
     return progress + mass, {"reward_progress": progress, "reward_mass": mass}
