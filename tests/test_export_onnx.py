@@ -55,7 +55,19 @@ def test_onnx_matches_torch_over_10000_random_states(exported, record_property):
     print(f"max |onnx - torch| {report['max_abs_diff']:.2e}; step: onnxruntime "
           f"{report['onnxruntime_step']['median_us']:.0f} us, torch {report['torch_step']['median_us']:.0f} us")
     assert report["max_abs_diff"] <= PARITY_TOLERANCE and report["passed"]
+    # both runtimes round in float32 about the same float64 network, by less than the tolerance
+    assert 0.0 < report["torch_vs_float64"] <= PARITY_TOLERANCE and 0.0 < report["onnx_vs_float64"] <= PARITY_TOLERANCE
     assert report["onnxruntime_step"]["median_us"] < 5000  # far below the 0.25 s control period
+
+
+def test_parity_fails_for_an_onnx_file_of_another_network(exported):
+    actor, path = exported
+    other = ScaledPaperActor()
+    other.load_state_dict(actor.state_dict())
+    with torch.no_grad():
+        other.head.bias.add_(1e-3)  # a slightly different network than the file holds
+    report = check_parity(other, path, random_states(200, seed=2), timing_steps=10)
+    assert report["max_abs_diff"] > PARITY_TOLERANCE and not report["passed"]
 
 
 def test_onnx_policy_acts_like_a_policy_and_keeps_its_metadata(exported):

@@ -24,8 +24,12 @@ from autoscoop.core.version import __version__
 
 OPSET = 17
 """ONNX opset: 17 has LayerNormalization as one operator."""
-PARITY_TOLERANCE = 1e-5
-"""Largest allowed |onnx - torch| of any action component."""
+PARITY_TOLERANCE = 5e-5
+"""Largest allowed |onnx - torch| of any action component. Each runtime rounds in float32: for the
+shipped actor of 2026-12-02 torch's own float32 actions are up to 1.2e-5 from the same network in
+float64 (and onnxruntime's 1.2e-5), so two float32 runtimes can differ by about twice that; 5e-5 of an
+action moves a target by at most 2e-5 rad or 1e-5 m/s (action x range), far below what the
+servos resolve. ``check_parity`` reports both runtimes' distance from float64 beside it."""
 
 
 def export_onnx(actor: Any, path: str | Path, metadata: dict[str, Any] | None = None) -> Path:
@@ -97,7 +101,8 @@ def check_parity(actor: Any, onnx_path: str | Path, states: np.ndarray, timing_s
 
     Returns:
         ``max_abs_diff`` (over all states and action components), ``states``, ``passed``
-        (``max_abs_diff <= PARITY_TOLERANCE``), and per-step inference times in microseconds
+        (``max_abs_diff <= PARITY_TOLERANCE``), ``torch_vs_float64`` and ``onnx_vs_float64`` (each
+        runtime's largest distance from the same network run in float64), and per-step inference times in microseconds
         (median and 99th percentile) for onnxruntime (1 thread) and torch.
     """
     import torch  # noqa: PLC0415
@@ -107,8 +112,11 @@ def check_parity(actor: Any, onnx_path: str | Path, states: np.ndarray, timing_s
     states = np.asarray(states, dtype=np.float32)
     with torch.no_grad():
         expected = module(torch.as_tensor(states)).numpy()
+        exact = copy.deepcopy(module).double()(torch.as_tensor(states, dtype=torch.float64)).numpy()
     got = policy.act_batch(states)
     diff = float(np.max(np.abs(got.astype(np.float64) - expected.astype(np.float64))))
+    rounding = {"torch_vs_float64": float(np.max(np.abs(expected.astype(np.float64) - exact))),
+                "onnx_vs_float64": float(np.max(np.abs(got.astype(np.float64) - exact)))}
 
     def timed(fn) -> dict[str, float]:
         times = np.empty(timing_steps)
@@ -131,7 +139,7 @@ def check_parity(actor: Any, onnx_path: str | Path, states: np.ndarray, timing_s
         onnx_time, torch_time = timed(policy.act), timed(torch_step)
     finally:
         torch.set_num_threads(threads)
-    return {"states": int(len(states)), "max_abs_diff": diff, "tolerance": PARITY_TOLERANCE,
+    return {"states": int(len(states)), "max_abs_diff": diff, **rounding, "tolerance": PARITY_TOLERANCE,
             "passed": bool(diff <= PARITY_TOLERANCE), "onnxruntime_step": onnx_time, "torch_step": torch_time}
 
 
