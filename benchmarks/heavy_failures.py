@@ -21,6 +21,7 @@ from autoscoop.agents.loading import load_policy
 from autoscoop.core.config import ScoopConfig
 from autoscoop.envs.rollout import rollout
 from autoscoop.envs.scoop import make_scoop_env
+from autoscoop.sim.load_cell import chassis_pitch_rad
 
 LAST_STEPS = 8
 """control periods at an episode's end over which the pitch is averaged (2 s)."""
@@ -33,11 +34,6 @@ def parse_seeds(text: str) -> list[int]:
         low, _, high = part.partition("-")
         seeds.extend(range(int(low), int(high or low) + 1))
     return seeds
-
-
-def pitch_deg(rotation: np.ndarray) -> float:
-    """The chassis pitch about its y axis, degrees; positive when the nose is down (x forward, z up)."""
-    return math.degrees(math.atan2(-rotation[2, 0], rotation[0, 0]))
 
 
 def main() -> int:
@@ -57,7 +53,7 @@ def main() -> int:
         pitches, heights, closest = [], [], []
 
         def watch(_step, _obs, _action, _reward, info, pitches=pitches, heights=heights, closest=closest):
-            pitches.append(pitch_deg(sim_env.sim.chassis_pose[1]))
+            pitches.append(math.degrees(chassis_pitch_rad(sim_env.sim)))
             heights.append(float(sim_env.sim.tip_world[2]))
             closest.append(float(info["tip_to_terminal_m"]))
 
