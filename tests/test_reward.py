@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import math
+
 import pytest
 
 from autoscoop.core.config import ConfigError, RewardConfig
@@ -53,3 +55,21 @@ def test_bad_settings_name_the_key():
         RewardConfig.from_dict({"c_overload": -1.0})
     with pytest.raises(ConfigError, match="overload_from"):
         RewardConfig.from_dict({"overload_from": 0.1})
+
+
+def test_pitch_cost_charges_each_degree_nose_down_beyond_the_threshold():
+    config = RewardConfig(c_pitch=0.5, pitch_from_deg=8.0)
+    reward, terms = scoop_reward(0.3, 0.5, False, 0.0, config, chassis_pitch_rad=math.radians(12.0))
+    assert terms["reward_pitch"] == pytest.approx(-2.0)  # 4 degrees beyond 8, 0.5 each
+    assert reward == pytest.approx(sum(terms.values()))
+    _, level = scoop_reward(0.3, 0.5, False, 0.0, config, chassis_pitch_rad=math.radians(7.9))
+    _, tail_down = scoop_reward(0.3, 0.5, False, 0.0, config, chassis_pitch_rad=math.radians(-15.0))
+    assert level["reward_pitch"] == 0.0 and tail_down["reward_pitch"] == 0.0
+
+
+def test_pitch_cost_off_by_default_leaves_the_papers_terms():
+    reward, terms = scoop_reward(0.3, 0.5, False, 0.0, RewardConfig(), chassis_pitch_rad=math.radians(20.0))
+    assert set(terms) == {"reward_progress", "reward_mass"}
+    assert reward == terms["reward_progress"]
+    with pytest.raises(ConfigError, match="c_pitch"):
+        RewardConfig.from_dict({"c_pitch": -1.0})

@@ -321,6 +321,10 @@ class RewardConfig(ConfigModel):
                                 "overload_from", 0.0, 1000.0)
     overload_from: float = setting(1.0, "-", "fill factor w from which mass costs c_overload per unit (1: the rated "
                                    "load; below 1 the bonus peaks short of it, a margin for heavy earth)", 0.5, 2.0)
+    c_pitch: float = setting(0.0, "1/deg", "each step costs c_pitch per degree of nose-down chassis pitch beyond "
+                             "pitch_from_deg (0: off, the paper's reward)", 0.0, 100.0)
+    pitch_from_deg: float = setting(8.0, "deg", "nose-down chassis pitch from which c_pitch costs (a heavy load "
+                                    "lifted far forward tips the loader onto its front wheels)", 0.0, 45.0)
 
 
 class EnvConfig(ConfigModel):

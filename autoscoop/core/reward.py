@@ -15,6 +15,9 @@ measure of a scoop's success (light earth fills the bucket by volume before it r
 mass); ``reward.c_overload`` > 0 takes c_overload * (w_t - w_o) off the bonus for mass above
 w_o = ``reward.overload_from`` (1 by default: the rated load; below 1 the bonus peaks short of the
 rated load, so that a scoop of heavy earth aims under it with room for the scatter of a scoop).
+``reward.c_pitch`` > 0 costs c_pitch per degree of nose-down chassis pitch beyond
+``reward.pitch_from_deg`` at every step (the term ``reward_pitch``): a heavy load carried far forward
+tips the loader onto its front wheels, and a loader on its nose neither drives nor lifts well.
 """
 
 from __future__ import annotations
@@ -30,7 +33,8 @@ def is_penetrating(nearest_particle_m: float, config: RewardConfig) -> bool:
 
 
 def scoop_reward(tip_to_pile_m: float, tip_to_terminal_m: float, penetrating: bool, w: float,
-                 config: RewardConfig, volumetric_fill: float = 0.0) -> tuple[float, dict[str, float]]:
+                 config: RewardConfig, volumetric_fill: float = 0.0,
+                 chassis_pitch_rad: float = 0.0) -> tuple[float, dict[str, float]]:
     """Reward of one step and its terms.
 
     Args:
@@ -40,9 +44,11 @@ def scoop_reward(tip_to_pile_m: float, tip_to_terminal_m: float, penetrating: bo
         w: normalised mass in the bucket (paid up to 1: the rated load).
         config: c_w, epsilon, distance scale, fill measure, overload cost.
         volumetric_fill: v_t, the particles' volume over the bucket's capacity (``fill_measure = scoop``).
+        chassis_pitch_rad: the chassis pitch, rad, positive nose down (``c_pitch`` > 0).
 
     Returns:
-        (reward, {"reward_progress": P_t, "reward_mass": c_w * w_t or 0}); the terms sum to the reward.
+        (reward, {"reward_progress": P_t, "reward_mass": c_w * w_t or 0}, with "reward_pitch" where
+        ``c_pitch`` > 0); the terms sum to the reward.
     """
     distance = tip_to_terminal_m if penetrating else tip_to_pile_m
     progress = 1.0 - math.tanh(distance / config.distance_scale_m) ** 2
@@ -52,4 +58,9 @@ def scoop_reward(tip_to_pile_m: float, tip_to_terminal_m: float, penetrating: bo
         mass = config.c_w * min(fill, 1.0)  # no more for an overload
         if config.c_overload and w > config.overload_from:
             mass -= config.c_overload * (w - config.overload_from)
-    return progress + mass, {"reward_progress": progress, "reward_mass": mass}
+    terms = {"reward_progress": progress, "reward_mass": mass}
+    if config.c_pitch:
+        excess_deg = max(math.degrees(chassis_pitch_rad) - config.pitch_from_deg, 0.0)
+        terms["reward_pitch"] = -config.c_pitch * excess_deg
+        return progress + mass + terms["reward_pitch"], terms
+    return progress + mass, terms

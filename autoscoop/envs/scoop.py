@@ -16,6 +16,7 @@ from autoscoop.core.reward import is_penetrating, scoop_reward
 from autoscoop.core.sensing import RawReadings, SensorNoise, add_noise, delay_steps
 from autoscoop.core.state import CommandLimits, Measurements
 from autoscoop.sim.capacity import volumetric_fill
+from autoscoop.sim.load_cell import chassis_pitch_rad
 from autoscoop.sim.scene import ScoopSim
 from autoscoop.sim.world import draw_world, scene_key, world_config
 
@@ -203,8 +204,10 @@ class ScoopEnv(gym.Env):
         obs, info = self._observe()
         # the reward's w is the counted fill factor, rounded as the state's w is (float32): with the
         # truth source the same number as obs[0]; with the torque source the true load, not the estimate
+        pitch = chassis_pitch_rad(self.sim) if cfg.reward.c_pitch else 0.0
         reward, terms = scoop_reward(info["tip_to_pile_m"], info["tip_to_terminal_m"], info["penetrating"],
-                                     float(np.float32(info["fill_factor"])), cfg.reward, info["volumetric_fill"])
+                                     float(np.float32(info["fill_factor"])), cfg.reward, info["volumetric_fill"],
+                                     chassis_pitch_rad=pitch)
         info.update(terms)
         terminated = info["reached"]  # the scoop ends at the terminal point, loaded or not
         return obs, float(reward), bool(terminated), False, info
