@@ -62,5 +62,4 @@ def scoop_reward(tip_to_pile_m: float, tip_to_terminal_m: float, penetrating: bo
     if config.c_pitch:
         excess_deg = max(math.degrees(chassis_pitch_rad) - config.pitch_from_deg, 0.0)
         terms["reward_pitch"] = -config.c_pitch * excess_deg
-        return progress + mass + terms["reward_pitch"], terms
-    return progress + mass, terms
+    return float(sum(terms.values())), terms
