@@ -408,3 +408,40 @@ def test_two_environments_without_demonstrations_are_warned_about(tmp_path, caps
     assert main(["train", "--episodes", "2", "--n-envs", "2", "--eval-every", "0", "--demo-episodes", "1",
                  "--out", str(tmp_path / "b"), *FAST]) == 0
     assert "without scripted demonstrations" not in capsys.readouterr().err
+
+
+def test_learning_rate_end_lowers_the_learning_rate_linearly_over_the_episodes(tmp_path, monkeypatch):
+    """``learning_rate_end``: the optimisers' rate falls from hyperparams.learning_rate to it over the run."""
+    from autoscoop.training import run as train_mod
+    from autoscoop.training import settings
+    from autoscoop.training.callbacks import EpisodeLogger
+
+    original = settings.load_recipe
+    spec = original("ddpg", "paper")
+    spec = {**spec, "hyperparams": {**spec["hyperparams"], "learning_rate": 1e-3, "learning_starts": 10},
+            "learning_rate_end": 1e-4}
+    monkeypatch.setattr(train_mod, "load_recipe", lambda algo, recipe: spec)
+    rates: list[float] = []
+    end = EpisodeLogger.end_episode
+
+    def watch(self, env_index, info):
+        end(self, env_index, info)
+        self.model.train(gradient_steps=1, batch_size=8)  # the rate SB3 sets before each update
+        rates.append(self.model.actor.optimizer.param_groups[0]["lr"])
+
+    monkeypatch.setattr(EpisodeLogger, "end_episode", watch)
+    train_mod.train(train_mod.TrainArgs(episodes=4, out=tmp_path / "run", progress=False,
+                                        overrides={"pile.variants": 2}, eval_every=0, checkpoint_every=10))
+    assert rates == pytest.approx([1e-3 - 0.9e-3 * k / 4 for k in (1, 2, 3, 4)])
+
+
+@pytest.mark.parametrize("value", [0, -1e-4, 2.0, "fast", True])
+def test_a_bad_learning_rate_end_is_refused_by_name(tmp_path, monkeypatch, value):
+    from autoscoop.training import run as train_mod
+    from autoscoop.training import settings
+
+    original = settings.load_recipe
+    monkeypatch.setattr(train_mod, "load_recipe",
+                        lambda algo, recipe: {**original(algo, "paper"), "learning_rate_end": value})
+    with pytest.raises(ValueError, match="learning_rate_end"):
+        train_mod.train(train_mod.TrainArgs(episodes=1, out=tmp_path / "run", progress=False))

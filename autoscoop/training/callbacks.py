@@ -14,6 +14,7 @@ from typing import Any
 
 import numpy as np
 from stable_baselines3.common.callbacks import BaseCallback
+from stable_baselines3.common.utils import ConstantSchedule
 from tqdm import tqdm
 
 from autoscoop.agents.loading import SB3Policy
@@ -79,11 +80,19 @@ class EpisodeLogger(BaseCallback):
             self.evaluator.evaluate(self.model, 0, self.logger)
 
     def _update_noise(self) -> None:
+        """Set the exploration noise and, with ``learning_rate_end`` in the YAML, the learning rate for the
+        episodes done: each falls linearly over the run, from its start (``noise.sigma_start``,
+        ``hyperparams.learning_rate``) at episode 0 to its end (``noise.sigma_end``, ``learning_rate_end``)
+        at the last episode; from the episode count, so a resumed run continues on the same line."""
+        fraction = min(self.done / max(self.episodes, 1), 1.0)
         noise_spec = self.spec.get("noise")
         noise = getattr(self.model, "action_noise", None)
         if noise_spec and noise is not None:
-            fraction = min(self.done / max(self.episodes, 1), 1.0)
             set_noise_scale(noise, noise_spec["sigma_start"] + fraction * (noise_spec["sigma_end"] - noise_spec["sigma_start"]))
+        end = self.spec.get("learning_rate_end")
+        if end is not None:
+            start = float(self.spec["hyperparams"]["learning_rate"])
+            self.model.lr_schedule = ConstantSchedule(start + fraction * (float(end) - start))
 
     def _on_step(self) -> bool:
         rewards, dones, infos = self.locals["rewards"], self.locals["dones"], self.locals["infos"]

@@ -128,6 +128,10 @@ def train(args: TrainArgs) -> Path:
         print(f"warning: --n-envs {args.n_envs} without scripted demonstrations: off-policy learners from random "
               "weights learned to scoop with two environments in 0 of 8 seeds (README, Speed); add "
               "--demo-episodes 20 or train with --n-envs 1", file=sys.stderr)
+    end = spec.get("learning_rate_end")
+    if end is not None and (isinstance(end, bool) or not isinstance(end, (int, float)) or not 0 < end <= 1
+                            or "learning_rate" not in (spec.get("hyperparams") or {})):
+        raise ValueError(f"learning_rate_end must be a number in (0, 1] beside hyperparams.learning_rate, got {end!r}")
     config = ScoopConfig().with_overrides({**(spec.get("env") or {}), **args.overrides})
     config_at(config, spec, args.episodes)  # a curriculum's stages are checked before anything starts
     init_zip = init_model_zip(args.init_from, args.algo, args.trust) if args.init_from else None
