@@ -14,6 +14,7 @@ from autoscoop.commands import (
     seed_int,
     write_json,
 )
+from autoscoop.core.policy import config_for_policy
 from autoscoop.evaluation.evaluate import evaluate, format_table, summarize
 
 
@@ -45,7 +46,7 @@ def run(args: argparse.Namespace) -> int:
     policy = load_policy(args.policy, config, trust=args.trust)
     results = evaluate(policy, config, args.episodes, seed=args.seed, records_dir=args.records,
                        records_meta={"policy": args.policy})
-    summary = summarize(results, config, args.policy)
+    summary = summarize(results, config_for_policy(policy, config), args.policy)  # the frame it ran in
     print(format_table(summary))
     if args.json:
         write_json(args.json, summary)

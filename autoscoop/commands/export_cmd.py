@@ -40,7 +40,8 @@ def run(args: argparse.Namespace) -> int:
     policy = load_policy(args.policy, config, trust=args.trust)
     actor = exportable_actor(policy)
     path = export_onnx(actor, args.onnx, {"policy_name": getattr(policy, "name", args.policy),
-                                          "source_policy": args.policy})
+                                          "source_policy": args.policy,
+                                          "state_frame": getattr(policy, "state_frame", None) or "chassis"})
     print(f"wrote {path} ({path.stat().st_size / 1024:.1f} KiB)")
     if args.check_states == 0:
         return 0

@@ -373,6 +373,10 @@ class SensorConfig(ConfigModel):
     range_noise_m: float = setting(0.0, "m", "std of the noise on the range to the pile (kept >= 0)", 0.0, 0.1)
     torque_noise_nm: float = setting(0.0, "N*m", "std of the noise on each joint torque sample (one per physics "
                                      "step; the load cell averages them over the control period)", 0.0, 10.0)
+    level_with_imu: bool = setting(False, "-", "the state's tip and bucket-joint positions are turned by the IMU's "
+                                   "chassis pitch into the level frame (z: height above level ground while the "
+                                   "loader rocks; the policy file says so as state_frame: level); false: the "
+                                   "paper's chassis frame")
 
 
 class ScoopTaskConfig(ConfigModel):

@@ -18,7 +18,10 @@ State, in this order (paper Sec. III-C; docs/definitions.md):
 | 11    | dtilt     | change of tilt since the previous step                | rad  |                         |
 
 The tip and joint positions come from the arm's forward kinematics at the measured joint angles
-(what the robot itself can compute), not from the simulator's ground truth.
+(what the robot itself can compute), not from the simulator's ground truth. A policy trained with
+``sensor.level_with_imu`` sees them in the *level* frame instead: the chassis frame turned by the
+IMU's chassis pitch about the chassis centre, so that z is height above level ground even while the
+loader rocks onto its front wheels (:func:`level_points`; ``STATE_FRAMES``).
 
 Actions are 3 numbers in [-1, 1]: drive, lift, tilt. As in the paper's code, each one moves its
 commanded target by ``action * (upper limit - lower limit)``, clipped to the limits.
@@ -39,6 +42,9 @@ if TYPE_CHECKING:
 STATE_NAMES = ("w", "tip_x", "tip_z", "joint_x", "joint_z", "d_pile", "v", "lift", "tilt", "dv", "dlift", "dtilt")
 STATE_UNITS = ("-", "m", "m", "m", "m", "m", "m/s", "rad", "rad", "m/s", "rad", "rad")
 STATE_SIZE = len(STATE_NAMES)
+STATE_FRAMES = ("chassis", "level")
+"""Frames of the state's tip and joint positions: ``chassis`` (the paper's; the arm's kinematics alone) or
+``level`` (the same turned by the IMU's chassis pitch: gravity-level, x forward, z up)."""
 ACTION_NAMES = ("drive", "lift", "tilt")
 ACTION_SIZE = len(ACTION_NAMES)
 
@@ -53,6 +59,8 @@ class Measurements:
         speed_mps: forward speed from wheel odometry, m/s.
         lift_rad: lift angle, rad (positive lowers the arm).
         tilt_rad: tilt angle, rad (positive tips the cutting edge down).
+        chassis_pitch_rad: the IMU's chassis pitch, rad (positive nose down); 0 unless the state is
+            wanted in the level frame, where the arm's points are turned by it (:func:`level_points`).
     """
 
     mass_kg: float
@@ -60,6 +68,18 @@ class Measurements:
     speed_mps: float
     lift_rad: float
     tilt_rad: float
+    chassis_pitch_rad: float = 0.0
+
+
+def level_points(points_xz: np.ndarray, chassis_pitch_rad: float | np.ndarray) -> np.ndarray:
+    """Chassis-frame points (..., 2) in the level frame: turned by the chassis pitch about the chassis
+    centre (:data:`autoscoop.core.kinematics.CHASSIS_CENTRE_HEIGHT_M` above the ground), so a point ahead
+    of the centre drops as the nose pitches down. A pitch of exactly 0 returns the points unchanged."""
+    pitch_rad = np.asarray(chassis_pitch_rad, dtype=float)
+    if not np.any(pitch_rad):
+        return points_xz
+    centre = np.array([0.0, kinematics.CHASSIS_CENTRE_HEIGHT_M])
+    return centre + kinematics.pitch(np.asarray(points_xz, dtype=float) - centre, pitch_rad)
 
 
 def build_state(now: Measurements, previous: Measurements | None, rated_load_kg: float) -> np.ndarray:
@@ -75,10 +95,12 @@ def build_state(now: Measurements, previous: Measurements | None, rated_load_kg:
     """
     before = now if previous is None else previous
     pose = kinematics.arm_pose(now.lift_rad, now.tilt_rad)
+    tip = level_points(pose.tip, now.chassis_pitch_rad)
+    joint = level_points(pose.bucket_joint, now.chassis_pitch_rad)
     return np.array([
         now.mass_kg / rated_load_kg,
-        pose.tip[..., 0], pose.tip[..., 1],
-        pose.bucket_joint[..., 0], pose.bucket_joint[..., 1],
+        tip[..., 0], tip[..., 1],
+        joint[..., 0], joint[..., 1],
         now.pile_distance_m,
         now.speed_mps, now.lift_rad, now.tilt_rad,
         now.speed_mps - before.speed_mps, now.lift_rad - before.lift_rad, now.tilt_rad - before.tilt_rad,

@@ -46,7 +46,7 @@ from autoscoop.core.payload import (
     ReadingAverage,
     reported_mass_kg,
 )
-from autoscoop.core.policy import Policy
+from autoscoop.core.policy import Policy, state_frame_of
 from autoscoop.core.reward import is_penetrating
 from autoscoop.core.state import (
     CommandLimits,
@@ -160,6 +160,8 @@ class ControllerCore:
                  log: Callable[[str, str], None] | None = None, policy_name: str | None = None) -> None:
         self.config = config
         self.policy = policy
+        self.level_state = state_frame_of(policy) == "level"
+        """whether the state's tip and joint positions are levelled by the chassis pitch (the policy's frame)"""
         self.policy_name = policy_name or getattr(policy, "name", "policy")
         self.task = task or ScoopConfig()
         self.task_limits = CommandLimits.for_robot(self.task.robot)
@@ -370,8 +372,11 @@ class ControllerCore:
         else:
             mean = self.readings.take()
             mass = float(self.mass_from_torque(self.readings.latest if mean is None else mean))
+        # a policy trained in the level frame gets the arm's points turned by the odometry's chassis pitch
+        pitch = self.chassis_pitch_rad if self.level_state else 0.0
         return Measurements(mass_kg=mass if math.isfinite(mass) else 0.0, pile_distance_m=self.range_m,
-                            speed_mps=self.speed_mps, lift_rad=self.lift_rad, tilt_rad=self.tilt_rad)
+                            speed_mps=self.speed_mps, lift_rad=self.lift_rad, tilt_rad=self.tilt_rad,
+                            chassis_pitch_rad=pitch)
 
     def _stopped(self, mode: str, reason: str) -> Command:
         arm = None

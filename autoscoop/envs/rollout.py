@@ -12,7 +12,7 @@ from typing import Any
 
 import numpy as np
 
-from autoscoop.core.policy import Policy
+from autoscoop.core.policy import Policy, state_frame_of
 from autoscoop.envs.outcome import EpisodeOutcome
 
 StepObserver = Callable[[int, np.ndarray, np.ndarray, float, dict], None]
@@ -31,7 +31,8 @@ def rollout(policy: Policy, env: Any, seed: int, observers: Iterable[StepObserve
     """Run one episode of ``policy`` in ``env`` from ``seed``.
 
     Args:
-        policy: the controller; reset before the episode.
+        policy: the controller; reset before the episode. Where it declares a ``state_frame`` (a policy
+            file), the environment builds the state in that frame (``sensor.level_with_imu``).
         env: a Gymnasium environment of autoscoop (``make_scoop_env``), possibly wrapped (a recorder).
         seed: the episode's seed (``env.reset(seed=seed)``).
         observers: called after every step, in order (see :data:`StepObserver`).
@@ -46,6 +47,9 @@ def rollout(policy: Policy, env: Any, seed: int, observers: Iterable[StepObserve
     """
     observers = tuple(observers)
     transition_observers = tuple(transition_observers)
+    frame = state_frame_of(policy)
+    if frame is not None:  # a policy file's frame (sensor.level_with_imu) is the one its actor was trained on
+        env.unwrapped.use_state_frame(frame)
     obs, info = env.reset(seed=seed, options=options)
     policy.reset()
     total, steps = 0.0, 0

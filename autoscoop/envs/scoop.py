@@ -212,6 +212,22 @@ class ScoopEnv(gym.Env):
         terminated = info["reached"]  # the scoop ends at the terminal point, loaded or not
         return obs, float(reward), bool(terminated), False, info
 
+    @property
+    def state_frame(self) -> str:
+        """The frame of the state's tip and joint positions: ``level`` with ``sensor.level_with_imu``, else ``chassis``."""
+        return "level" if self.config.sensor.level_with_imu else "chassis"
+
+    def use_state_frame(self, frame: str) -> None:
+        """Build the state in ``frame`` (``chassis`` or ``level``: ``sensor.level_with_imu``) from the next reset on;
+        the rollout loop calls it with the frame a policy file declares."""
+        if frame not in state_mod.STATE_FRAMES:
+            raise ValueError(f"state frame {frame!r} is not one of {state_mod.STATE_FRAMES}")
+        if frame == self.state_frame:
+            return
+        level = {"sensor.level_with_imu": frame == "level"}
+        self.config = self.config.with_overrides(level)
+        self.episode_config = self.episode_config.with_overrides(level)
+
     def set_randomize(self, randomize: RandomizeConfig) -> None:
         """Use another ``randomize`` section from the next reset on (a training curriculum widens the world)."""
         self.config = self.config.replace(randomize=randomize)
@@ -258,7 +274,14 @@ class ScoopEnv(gym.Env):
             noisy = add_noise(RawReadings(lift_rad=lift, tilt_rad=tilt, speed_mps=speed, range_m=tip_to_pile,
                                              tilt_torque_nm=0.0, lift_torque_nm=0.0), self._noise, self._noise_rng)
             lift, tilt, speed, tip_to_pile = noisy.lift_rad, noisy.tilt_rad, noisy.speed_mps, noisy.range_m
-        return Measurements(mass_kg=mass, pile_distance_m=tip_to_pile, speed_mps=speed, lift_rad=lift, tilt_rad=tilt)
+        # the IMU's pitch levels the arm's points (sensor.level_with_imu); its noise is the joints' (an angle)
+        pitch = 0.0
+        if self.episode_config.sensor.level_with_imu:
+            pitch = chassis_pitch_rad(sim)
+            if self._noise_rng is not None and self._noise.joint_rad:
+                pitch += float(self._noise_rng.normal(0.0, self._noise.joint_rad))
+        return Measurements(mass_kg=mass, pile_distance_m=tip_to_pile, speed_mps=speed, lift_rad=lift, tilt_rad=tilt,
+                            chassis_pitch_rad=pitch)
 
     def _observe(self) -> tuple[np.ndarray, dict[str, Any]]:
         sim, cfg = self.sim, self.episode_config

@@ -44,7 +44,8 @@ def save_safe_actor(model: Any, path: Path, metadata: dict[str, Any]) -> bool:
 def actor_meta(info: dict[str, Any], run_dir: Path) -> dict[str, Any]:
     """The metadata every saved actor of a run carries (from its ``run.json``)."""
     return {"algo": info["algo"], "seed": info["seed"], "episodes": info["episodes"],
-            "autoscoop_version": __version__, "run": run_dir.name}
+            "autoscoop_version": __version__, "run": run_dir.name,
+            "state_frame": info.get("state_frame", "chassis")}
 
 
 CHECKPOINT_FORMAT = "autoscoop-checkpoint/2"

@@ -155,6 +155,7 @@ def _start(args: TrainArgs, run_dir: Path, config: ScoopConfig, spec: dict[str, 
             "torch": torch.__version__,
             "checkpoint_every": args.checkpoint_every, "eval_every": args.eval_every,
             "eval_episodes": args.eval_episodes, "demo_episodes": demos,
+            "state_frame": "level" if config.sensor.level_with_imu else "chassis",
             "status": "running", "wall_s": 0.0}
     if init_zip is not None:
         info.update(init_from=str(init_zip.resolve()), init_sha256=sha256_of(init_zip))
