@@ -145,3 +145,25 @@ def test_the_onnx_export_carries_the_frame(tmp_path):
     out = tmp_path / "level.onnx"
     assert main(["export", "--policy", str(weights), "--onnx", str(out), "--check-states", "0"]) == 0
     assert OnnxPolicy(out).state_frame == "level"
+
+
+def test_the_robot_level_recipe_is_the_robot_recipe_in_the_level_frame_with_twice_the_episodes():
+    pytest.importorskip("torch")
+    import typing
+
+    from autoscoop.commands.train_cmd import register
+    from autoscoop.training.settings import RECIPES, load_recipe
+    from autoscoop.training.sweep_space import SweepSpace
+
+    robot, level = load_recipe("ddpg", "robot"), load_recipe("ddpg", "robot_level")
+    assert (robot["episodes"], level["episodes"]) == (2500, 5000)
+    assert level["env"] == {**robot["env"], "sensor.level_with_imu": True}
+    assert {k: v for k, v in level.items() if k not in ("episodes", "env", "recipe")} == \
+        {k: v for k, v in robot.items() if k not in ("episodes", "env", "recipe")}
+    # every named recipe is a choice of `autoscoop train --recipe` and of a sweep's space
+    import argparse
+    parser = argparse.ArgumentParser()
+    register(parser.add_subparsers())
+    for name in RECIPES:
+        assert parser.parse_args(["train", "--recipe", name]).recipe == name
+    assert set(typing.get_args(SweepSpace.model_fields["recipe"].annotation)) == set(RECIPES)

@@ -97,7 +97,7 @@ class TrainArgs:
     """scripted scoops put in the replay buffer before learning (off-policy algorithms only);
     ``None``: the recipe or the algorithm's YAML says (``demo_episodes``, 0 if absent)."""
     recipe: str = "paper"
-    """``paper`` or ``robot``: a named recipe laid over the algorithm's YAML (autoscoop/training/recipes/)."""
+    """``paper``, ``robot`` or ``robot_level``: a named recipe laid over the algorithm's YAML (autoscoop/training/recipes/)."""
     on_evaluation: Callable[[Evaluation], None] | None = None
     """called after each periodic evaluation, its files written (``autoscoop sweep`` reports it to Ray Tune);
     not recorded in the run directory."""

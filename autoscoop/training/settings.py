@@ -21,9 +21,10 @@ def load_hyperparams(algo: str) -> dict[str, Any]:
     return yaml.safe_load(text)
 
 
-RECIPES = ("paper", "robot")
+RECIPES = ("paper", "robot", "robot_level")
 """Named recipes (``autoscoop/training/recipes/NAME.yaml``): ``paper`` (the paper's DDPG in its world, 800
-episodes) and ``robot`` (the shipped ``default``'s: the ``robot`` randomised world, scripted demonstrations)."""
+episodes), ``robot`` (the shipped ``default``'s: the ``robot`` randomised world, scripted demonstrations) and
+``robot_level`` (``robot`` with the state in the level frame, ``sensor.level_with_imu``, and 5000 episodes)."""
 
 
 def load_recipe(algo: str, recipe: str = "paper") -> dict[str, Any]:
