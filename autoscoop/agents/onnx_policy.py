@@ -12,7 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
-from autoscoop.core.state import ACTION_NAMES, ACTION_SIZE, STATE_FRAMES, STATE_NAMES, STATE_SIZE
+from autoscoop.core.state import ACTION_NAMES, ACTION_SIZE, STATE_NAMES, STATE_SIZE, recorded_state_frame
 
 ONNX_FORMAT = "autoscoop-onnx-policy/1"
 """Value of the ``autoscoop_format`` metadata entry of an exported policy."""
@@ -58,10 +58,7 @@ class OnnxPolicy:
             raise ValueError(f"ONNX policy {self.path}: expected one output {OUTPUT_NAME!r} of {ACTION_SIZE} numbers "
                              f"({', '.join(ACTION_NAMES)}), got {[(o.name, o.shape) for o in outputs]}")
         self.name = self.metadata.get("policy_name") or self.path.stem
-        self.state_frame = self.metadata.get("state_frame", "chassis")
-        if self.state_frame not in STATE_FRAMES:
-            raise ValueError(f"ONNX policy {self.path}: metadata state_frame {self.state_frame!r} is not one of "
-                             f"{STATE_FRAMES}")
+        self.state_frame = recorded_state_frame(self.metadata, f"ONNX policy {self.path}")
 
     def reset(self) -> None:
         """Nothing to forget: the actor is a function of the state."""

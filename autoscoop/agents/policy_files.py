@@ -17,7 +17,7 @@ import torch
 from safetensors.torch import load_file, save_file
 
 from autoscoop.agents.networks import PaperActor
-from autoscoop.core.state import STATE_FRAMES
+from autoscoop.core.state import recorded_state_frame
 
 FORMAT = "autoscoop-actor/1"
 
@@ -83,18 +83,6 @@ def load_actor(path: str | Path) -> tuple[PaperActor, dict[str, Any]]:
     return actor, meta
 
 
-def state_frame_from(metadata: dict[str, Any], source: str | Path) -> str:
-    """The state frame a policy file's metadata records (``state_frame``; files from before it: ``chassis``).
-
-    Raises:
-        PolicyFileError: naming the file, when the recorded frame is not one of ``STATE_FRAMES``.
-    """
-    frame = metadata.get("state_frame", "chassis")
-    if frame not in STATE_FRAMES:
-        raise PolicyFileError(f"{source}: state_frame {frame!r} is not one of {STATE_FRAMES}")
-    return frame
-
-
 class ActorPolicy:
     """A :class:`autoscoop.core.policy.Policy` that runs a saved actor with torch.
 
@@ -106,7 +94,10 @@ class ActorPolicy:
     def __init__(self, path: str | Path, name: str | None = None) -> None:
         self.actor, self.metadata = load_actor(path)
         self.name = name or Path(path).stem
-        self.state_frame = state_frame_from(self.metadata, path)
+        try:
+            self.state_frame = recorded_state_frame(self.metadata, path)
+        except ValueError as error:
+            raise PolicyFileError(str(error)) from None
 
     def reset(self) -> None:
         """The actor is stateless."""

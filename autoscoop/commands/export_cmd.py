@@ -13,6 +13,7 @@ import argparse
 from pathlib import Path
 
 from autoscoop.commands import add_config_args, config_from_args, write_json
+from autoscoop.core.policy import state_frame_of
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -41,7 +42,7 @@ def run(args: argparse.Namespace) -> int:
     actor = exportable_actor(policy)
     path = export_onnx(actor, args.onnx, {"policy_name": getattr(policy, "name", args.policy),
                                           "source_policy": args.policy,
-                                          "state_frame": getattr(policy, "state_frame", None) or "chassis"})
+                                          "state_frame": state_frame_of(policy) or "chassis"})
     print(f"wrote {path} ({path.stat().st_size / 1024:.1f} KiB)")
     if args.check_states == 0:
         return 0

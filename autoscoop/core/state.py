@@ -45,6 +45,18 @@ STATE_SIZE = len(STATE_NAMES)
 STATE_FRAMES = ("chassis", "level")
 """Frames of the state's tip and joint positions: ``chassis`` (the paper's; the arm's kinematics alone) or
 ``level`` (the same turned by the IMU's chassis pitch: gravity-level, x forward, z up)."""
+
+
+def recorded_state_frame(metadata: dict, source: object) -> str:
+    """The state frame a policy file's metadata records (``state_frame``; files from before it: ``chassis``).
+
+    Raises:
+        ValueError: naming ``source`` (the file), when the recorded frame is not one of :data:`STATE_FRAMES`.
+    """
+    frame = metadata.get("state_frame", "chassis")
+    if frame not in STATE_FRAMES:
+        raise ValueError(f"{source}: state_frame {frame!r} is not one of {STATE_FRAMES}")
+    return frame
 ACTION_NAMES = ("drive", "lift", "tilt")
 ACTION_SIZE = len(ACTION_NAMES)
 
