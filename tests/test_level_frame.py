@@ -167,3 +167,30 @@ def test_the_robot_level_recipe_is_the_robot_recipe_in_the_level_frame_with_twic
     for name in RECIPES:
         assert parser.parse_args(["train", "--recipe", name]).recipe == name
     assert set(typing.get_args(SweepSpace.model_fields["recipe"].annotation)) == set(RECIPES)
+
+
+def test_the_ros_simulator_reads_the_imu_pitch_with_the_joints_noise_and_only_then():
+    """`autoscoop ros sim` with noise reads the pitch as the environment does (the joints' std); the other
+    readings draw the same noise as before (the IMU has a stream of its own)."""
+    from autoscoop.core.payload import pitch_from_quaternion
+    from autoscoop.core.sensing import SensorNoise
+    from autoscoop.deploy.sim_bridge import SimBridge
+
+    config = ScoopConfig().with_overrides({"pile.variants": 1})
+    exact, noisy, joints_only = (SimBridge(config, noise=noise, seed=3) for noise in (
+        SensorNoise(), SensorNoise(joint_rad=0.01), SensorNoise(joint_rad=0.01)))
+    errors = []
+    for bridge in (exact, noisy, joints_only):
+        bridge.reset(seed=0)
+    for _ in range(60):
+        truth, read, again = (bridge.step(np.array([0.1, 0.3, 0.1])) for bridge in (exact, noisy, joints_only))
+        true_pitch = pitch_from_quaternion(*truth.chassis_quat_wxyz)
+        errors.append(pitch_from_quaternion(*read.chassis_quat_wxyz) - true_pitch)
+        assert read.joint_positions == again.joint_positions  # same seed, same draws
+        assert np.linalg.norm(read.chassis_quat_wxyz) == pytest.approx(1.0)
+    errors = np.array(errors)
+    assert 0.006 < errors.std() < 0.014
+    assert abs(errors.mean()) < 0.005
+    steady = SimBridge(config, seed=3)
+    steady.reset(seed=0)
+    assert steady.readings().chassis_quat_wxyz == steady.readings().chassis_quat_wxyz  # no noise: the truth

@@ -48,7 +48,8 @@ class SensorReadings:
         lift_torque_nm: torque at the lift joint, N*m.
         payload_kg: mass of the particles inside the bucket, kg (what a perfect load cell would report).
         chassis_xyz_m: chassis centre in the world (pile) frame, m (for the odometry pose).
-        chassis_quat_wxyz: chassis orientation, unit quaternion (w, x, y, z).
+        chassis_quat_wxyz: chassis orientation, unit quaternion (w, x, y, z): the IMU, its pitch with the
+            joints' noise (``sensor.joint_noise_rad``) as the environment reads it.
     """
 
     time_s: float
@@ -89,6 +90,9 @@ class SimBridge:
         self.noise = noise or SensorNoise.from_config(config.sensor)
         self.robot = robot or RobotNodeConfig()
         self.rng = np.random.default_rng(seed)
+        # the IMU's pitch noise (the joints' std, as in the environment) from a stream of its own, so
+        # that the other readings draw the same noise as before the IMU was noisy
+        self._imu_rng = np.random.default_rng([seed, 1])
         self.limits = CommandLimits.for_robot(config.robot)
         self._span = self.limits.high - self.limits.low
         self.servo_period_s = config.env.control_period_s
@@ -178,6 +182,11 @@ class SimBridge:
         import mujoco  # noqa: PLC0415 - already loaded by the simulator
 
         mujoco.mju_mat2Quat(quat, rotation.reshape(-1))
+        if self.noise.joint_rad:  # the IMU's pitch, read as the environment reads it (sensor.level_with_imu)
+            half = 0.5 * float(self._imu_rng.normal(0.0, self.noise.joint_rad))
+            noisy = np.empty(4)
+            mujoco.mju_mulQuat(noisy, quat, np.array([math.cos(half), 0.0, math.sin(half), 0.0]))
+            quat = noisy
         return SensorReadings(
             time_s=sim.elapsed_s, joint_names=(self.robot.sensors.lift_joint, self.robot.sensors.tilt_joint),
             joint_positions=(float(positions[0]), float(positions[1])), speed_mps=float(speed), range_m=distance,
