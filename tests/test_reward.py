@@ -4,10 +4,11 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
 import pytest
 
-from autoscoop.core.config import ConfigError, RewardConfig
-from autoscoop.core.reward import scoop_reward
+from autoscoop.core.config import ConfigError, RewardConfig, ScoopConfig
+from autoscoop.core.reward import action_change, scoop_reward
 
 AT_GOAL = dict(tip_to_pile_m=0.3, tip_to_terminal_m=0.0, penetrating=True)
 
@@ -73,3 +74,36 @@ def test_pitch_cost_off_by_default_leaves_the_papers_terms():
     assert reward == terms["reward_progress"]
     with pytest.raises(ConfigError, match="c_pitch"):
         RewardConfig.from_dict({"c_pitch": -1.0})
+
+
+def test_action_change_is_the_mean_squared_halved_change_clipped_to_the_action_range():
+    assert action_change([0.0, 0.0, 0.0], [0.0, 0.0, 0.0]) == 0.0
+    assert action_change([1.0, 1.0, 1.0], [-1.0, -1.0, -1.0]) == pytest.approx(1.0)  # a full flip of all three
+    assert action_change([0.0, 0.0, 0.0], [1.0, 0.0, 0.0]) == pytest.approx(0.25 / 3)
+    assert action_change([0.0, 0.0, 0.0], [5.0, 0.0, 0.0]) == action_change([0.0, 0.0, 0.0], [1.0, 0.0, 0.0])
+    with pytest.raises(ValueError, match="components"):
+        action_change([0.0, 0.0], [0.0, 0.0, 0.0])
+
+
+def test_action_change_cost_charges_flips_and_is_off_by_default():
+    config = RewardConfig(c_action_change=2.0)
+    reward, terms = scoop_reward(0.3, 0.5, False, 0.0, config, action_change=0.5)
+    assert terms["reward_action_change"] == pytest.approx(-1.0)
+    assert reward == pytest.approx(sum(terms.values()))
+    _, paper = scoop_reward(0.3, 0.5, False, 0.0, RewardConfig(), action_change=1.0)
+    assert set(paper) == {"reward_progress", "reward_mass"}
+    with pytest.raises(ConfigError, match="c_action_change"):
+        RewardConfig.from_dict({"c_action_change": -1.0})
+
+
+def test_the_environment_charges_a_flipping_controller_and_not_a_steady_one():
+    from autoscoop.envs.scoop import make_scoop_env
+
+    env = make_scoop_env(ScoopConfig().with_overrides({"pile.variants": 1, "reward.c_action_change": 1.0}))
+    env.reset(seed=0)
+    costs = [env.step(np.array([sign, -sign, sign]))[4]["reward_action_change"] for sign in (1.0, -1.0, 1.0)]
+    assert costs == pytest.approx([-0.25, -1.0, -1.0])  # from still (a_-1 = 0), then full flips
+    env.reset(seed=0)  # a new episode starts from still again
+    steady = [env.step(np.array([0.5, 0.5, 0.5]))[4]["reward_action_change"] for _ in range(3)]
+    assert steady == pytest.approx([-0.0625, 0.0, 0.0])
+    env.close()

@@ -325,6 +325,9 @@ class RewardConfig(ConfigModel):
                              "pitch_from_deg (0: off, the paper's reward)", 0.0, 100.0)
     pitch_from_deg: float = setting(8.0, "deg", "nose-down chassis pitch from which c_pitch costs (a heavy load "
                                     "lifted far forward tips the loader onto its front wheels)", 0.0, 45.0)
+    c_action_change: float = setting(0.0, "-", "each step costs c_action_change times the action's change from "
+                                     "the last step (mean of the squared halved changes: 0 to 1; 0: off, the "
+                                     "paper's reward)", 0.0, 100.0)
 
 
 class EnvConfig(ConfigModel):

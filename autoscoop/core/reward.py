@@ -18,11 +18,17 @@ rated load, so that a scoop of heavy earth aims under it with room for the scatt
 ``reward.c_pitch`` > 0 costs c_pitch per degree of nose-down chassis pitch beyond
 ``reward.pitch_from_deg`` at every step (the term ``reward_pitch``): a heavy load carried far forward
 tips the loader onto its front wheels, and a loader on its nose neither drives nor lifts well.
+``reward.c_action_change`` > 0 costs c_action_change * u_t at every step (the term
+``reward_action_change``), u_t = mean_i ((a_t,i - a_t-1,i) / 2)^2 in [0, 1] over the three normalised
+actions, a_-1 = 0 (the loader starts still): a controller that flips its commands from one control
+period to the next (bang-bang, a limit cycle short of the terminal point) pays for it, and a robot's
+actuators are spared the jerk.
 """
 
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 
 from autoscoop.core.config import RewardConfig
 
@@ -32,9 +38,18 @@ def is_penetrating(nearest_particle_m: float, config: RewardConfig) -> bool:
     return nearest_particle_m <= config.delta_m
 
 
+def action_change(previous: Sequence[float], action: Sequence[float]) -> float:
+    """u_t: the mean over the action's components of ((a_t - a_t-1) / 2)^2, each clipped to [-1, 1]; 0 to 1."""
+    if len(previous) != len(action):
+        raise ValueError(f"action_change: {len(previous)} previous components against {len(action)}")
+    changes = [(max(-1.0, min(1.0, float(a))) - max(-1.0, min(1.0, float(p)))) / 2.0
+               for p, a in zip(previous, action, strict=True)]
+    return sum(c * c for c in changes) / len(changes) if changes else 0.0
+
+
 def scoop_reward(tip_to_pile_m: float, tip_to_terminal_m: float, penetrating: bool, w: float,
                  config: RewardConfig, volumetric_fill: float = 0.0,
-                 chassis_pitch_rad: float = 0.0) -> tuple[float, dict[str, float]]:
+                 chassis_pitch_rad: float = 0.0, action_change: float = 0.0) -> tuple[float, dict[str, float]]:
     """Reward of one step and its terms.
 
     Args:
@@ -45,10 +60,11 @@ def scoop_reward(tip_to_pile_m: float, tip_to_terminal_m: float, penetrating: bo
         config: c_w, epsilon, distance scale, fill measure, overload cost.
         volumetric_fill: v_t, the particles' volume over the bucket's capacity (``fill_measure = scoop``).
         chassis_pitch_rad: the chassis pitch, rad, positive nose down (``c_pitch`` > 0).
+        action_change: u_t of :func:`action_change`, 0 to 1 (``c_action_change`` > 0).
 
     Returns:
         (reward, {"reward_progress": P_t, "reward_mass": c_w * w_t or 0}, with "reward_pitch" where
-        ``c_pitch`` > 0); the terms sum to the reward.
+        ``c_pitch`` > 0 and "reward_action_change" where ``c_action_change`` > 0); the terms sum to the reward.
     """
     distance = tip_to_terminal_m if penetrating else tip_to_pile_m
     progress = 1.0 - math.tanh(distance / config.distance_scale_m) ** 2
@@ -62,4 +78,6 @@ def scoop_reward(tip_to_pile_m: float, tip_to_terminal_m: float, penetrating: bo
     if config.c_pitch:
         excess_deg = max(math.degrees(chassis_pitch_rad) - config.pitch_from_deg, 0.0)
         terms["reward_pitch"] = -config.c_pitch * excess_deg
+    if config.c_action_change:
+        terms["reward_action_change"] = -config.c_action_change * action_change
     return float(sum(terms.values())), terms

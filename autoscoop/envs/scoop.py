@@ -12,7 +12,7 @@ from gymnasium.wrappers import TimeLimit
 
 from autoscoop.core import state as state_mod
 from autoscoop.core.config import RandomizeConfig, ScoopConfig
-from autoscoop.core.reward import is_penetrating, scoop_reward
+from autoscoop.core.reward import action_change, is_penetrating, scoop_reward
 from autoscoop.core.sensing import RawReadings, SensorNoise, add_noise, delay_steps
 from autoscoop.core.state import CommandLimits, Measurements
 from autoscoop.sim.capacity import volumetric_fill
@@ -145,6 +145,7 @@ class ScoopEnv(gym.Env):
         self._targets = np.array([0.0, cfg.robot.start_lift_rad, cfg.robot.start_tilt_rad])
         self._ever_inside = np.zeros(cfg.pile.n_particles, dtype=bool)
         self._previous = None
+        self._previous_action = np.zeros(3)  # the loader starts still (reward.c_action_change)
         self._instabilities = self.sim.instability_count()
         if cfg.env.mass_source == "torque":
             from autoscoop.sim.load_cell import TorqueMassSensor  # noqa: PLC0415 - optional until used
@@ -179,6 +180,8 @@ class ScoopEnv(gym.Env):
 
     def step(self, action: np.ndarray) -> tuple[np.ndarray, float, bool, bool, dict]:
         self._targets = state_mod.advance_targets(self._targets, action, self.limits)
+        change = action_change(self._previous_action, action) if self.episode_config.reward.c_action_change else 0.0
+        self._previous_action = np.array(action, dtype=float)
         cfg = self.episode_config
         period = cfg.env.control_period_s
         lift_rate, tilt_rate = state_mod.servo_rate(
@@ -207,7 +210,7 @@ class ScoopEnv(gym.Env):
         pitch = chassis_pitch_rad(self.sim) if cfg.reward.c_pitch else 0.0
         reward, terms = scoop_reward(info["tip_to_pile_m"], info["tip_to_terminal_m"], info["penetrating"],
                                      float(np.float32(info["fill_factor"])), cfg.reward, info["volumetric_fill"],
-                                     chassis_pitch_rad=pitch)
+                                     chassis_pitch_rad=pitch, action_change=change)
         info.update(terms)
         terminated = info["reached"]  # the scoop ends at the terminal point, loaded or not
         return obs, float(reward), bool(terminated), False, info
