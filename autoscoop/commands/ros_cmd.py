@@ -56,7 +56,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 LINK_OPTIONS = (
     ("--delay-s", "sensor.delay_s", "s", "delay of every sensor message"),
-    ("--joint-noise-rad", "sensor.joint_noise_rad", "rad", "noise (std) on the joint angles"),
+    ("--joint-noise-rad", "sensor.joint_noise_rad", "rad", "noise (std) on the joint angles and the IMU's pitch"),
     ("--speed-noise-mps", "sensor.speed_noise_mps", "m/s", "noise (std) on the odometry speed"),
     ("--range-noise-m", "sensor.range_noise_m", "m", "noise (std) on the range to the pile"),
     ("--torque-noise-nm", "sensor.torque_noise_nm", "N*m", "noise (std) on each joint torque (bucket and lift)"),
