@@ -26,11 +26,13 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     parser = subparsers.add_parser("train", help="train a controller", description=__doc__)
     parser.add_argument("--algo", choices=["ddpg", "td3", "sac", "ppo"],
                         help="algorithm (default ddpg, the paper's); settings in autoscoop/training/hyperparams/ALGO.yaml")
-    parser.add_argument("--recipe", choices=["paper", "robot", "robot_level"],
-                        help="paper (default): the paper's DDPG in its world, 800 episodes; robot: the shipped "
-                             "default's, in the randomised robot world with scripted demonstrations; robot_level: "
-                             "robot with the state in the level frame (sensor.level_with_imu), 5000 episodes "
-                             "(autoscoop/training/recipes/NAME.yaml, laid over the algorithm's YAML)")
+    parser.add_argument("--recipe", choices=["paper", "robot", "robot_level", "robot_smooth"],
+                        help="paper (default): the paper's DDPG in its world, 800 episodes; robot: the randomised "
+                             "robot world with scripted demonstrations (the default shipped before); robot_level: "
+                             "robot with the state in the level frame (sensor.level_with_imu), 5000 episodes; "
+                             "robot_smooth: the shipped default's, robot_level with reward.distance_scale_m 0.3 "
+                             "and reward.c_action_change 1 (autoscoop/training/recipes/NAME.yaml, laid over the "
+                             "algorithm's YAML)")
     parser.add_argument("--episodes", type=int, default=None,
                         help=f"training episodes (default {DEFAULT_EPISODES}, as in the paper; "
                              "not with --resume: a resumed run keeps its recorded count)")

@@ -21,10 +21,12 @@ def load_hyperparams(algo: str) -> dict[str, Any]:
     return yaml.safe_load(text)
 
 
-RECIPES = ("paper", "robot", "robot_level")
+RECIPES = ("paper", "robot", "robot_level", "robot_smooth")
 """Named recipes (``autoscoop/training/recipes/NAME.yaml``): ``paper`` (the paper's DDPG in its world, 800
-episodes), ``robot`` (the shipped ``default``'s: the ``robot`` randomised world, scripted demonstrations) and
-``robot_level`` (``robot`` with the state in the level frame, ``sensor.level_with_imu``, and 5000 episodes)."""
+episodes), ``robot`` (the ``robot`` randomised world, scripted demonstrations; the ``default`` shipped before),
+``robot_level`` (``robot`` with the state in the level frame, ``sensor.level_with_imu``, and 5000 episodes) and
+``robot_smooth`` (the shipped ``default``'s: ``robot_level`` with a sharper progress term and a cost on
+flipping the commands)."""
 
 
 def load_recipe(algo: str, recipe: str = "paper") -> dict[str, Any]:

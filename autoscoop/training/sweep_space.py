@@ -143,7 +143,7 @@ class SweepSpace(BaseModel):
 
     algo: Literal["ddpg", "td3", "sac", "ppo"] = "ddpg"
     """the algorithm; ``hyper`` keys are those of its YAML."""
-    recipe: Literal["paper", "robot", "robot_level"] = "paper"
+    recipe: Literal["paper", "robot", "robot_level", "robot_smooth"] = "paper"
     """the recipe laid over the algorithm's YAML (as ``autoscoop train --recipe``)."""
     seeds: tuple[Seed, ...] = Field((0,), min_length=1)
     """training seeds, a grid: every trial set is trained with each."""
