@@ -169,6 +169,19 @@ def test_the_robot_level_recipe_is_the_robot_recipe_in_the_level_frame_with_twic
     assert set(typing.get_args(SweepSpace.model_fields["recipe"].annotation)) == set(RECIPES)
 
 
+def test_the_shipped_recipe_is_robot_level_with_a_sharper_progress_term_and_a_flip_cost():
+    pytest.importorskip("torch")
+    from autoscoop.core.config import ScoopConfig
+    from autoscoop.training.settings import load_recipe
+
+    level, smooth = load_recipe("ddpg", "robot_level"), load_recipe("ddpg", "robot_smooth")
+    assert smooth["env"] == {**level["env"], "reward.distance_scale_m": 0.3, "reward.c_action_change": 1.0}
+    assert {k: v for k, v in smooth.items() if k not in ("env", "recipe")} == \
+        {k: v for k, v in level.items() if k not in ("env", "recipe")}
+    # the two options are off in the paper's world
+    assert (ScoopConfig().reward.distance_scale_m, ScoopConfig().reward.c_action_change) == (1.0, 0.0)
+
+
 def test_the_ros_simulator_reads_the_imu_pitch_with_the_joints_noise_and_only_then():
     """`autoscoop ros sim` with noise reads the pitch as the environment does (the joints' std); the other
     readings draw the same noise as before (the IMU has a stream of its own)."""
