@@ -57,6 +57,8 @@ def recorded_state_frame(metadata: dict, source: object) -> str:
     if frame not in STATE_FRAMES:
         raise ValueError(f"{source}: state_frame {frame!r} is not one of {STATE_FRAMES}")
     return frame
+
+
 ACTION_NAMES = ("drive", "lift", "tilt")
 ACTION_SIZE = len(ACTION_NAMES)
 

@@ -180,9 +180,9 @@ class ScoopEnv(gym.Env):
 
     def step(self, action: np.ndarray) -> tuple[np.ndarray, float, bool, bool, dict]:
         self._targets = state_mod.advance_targets(self._targets, action, self.limits)
-        change = action_change(self._previous_action, action) if self.episode_config.reward.c_action_change else 0.0
-        self._previous_action = np.array(action, dtype=float)
         cfg = self.episode_config
+        change = action_change(self._previous_action, action) if cfg.reward.c_action_change else 0.0
+        self._previous_action = np.array(action, dtype=float)
         period = cfg.env.control_period_s
         lift_rate, tilt_rate = state_mod.servo_rate(
             self._targets[1:], [self.sim.lift_setpoint_rad, self.sim.tilt_setpoint_rad], period,
