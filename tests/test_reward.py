@@ -87,10 +87,10 @@ def test_action_change_is_the_mean_squared_halved_change_clipped_to_the_action_r
 
 def test_action_change_cost_charges_flips_and_is_off_by_default():
     config = RewardConfig(c_action_change=2.0)
-    reward, terms = scoop_reward(0.3, 0.5, False, 0.0, config, action_change=0.5)
+    reward, terms = scoop_reward(0.3, 0.5, False, 0.0, config, command_change=0.5)
     assert terms["reward_action_change"] == pytest.approx(-1.0)
     assert reward == pytest.approx(sum(terms.values()))
-    _, paper = scoop_reward(0.3, 0.5, False, 0.0, RewardConfig(), action_change=1.0)
+    _, paper = scoop_reward(0.3, 0.5, False, 0.0, RewardConfig(), command_change=1.0)
     assert set(paper) == {"reward_progress", "reward_mass"}
     with pytest.raises(ConfigError, match="c_action_change"):
         RewardConfig.from_dict({"c_action_change": -1.0})

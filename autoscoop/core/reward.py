@@ -49,7 +49,7 @@ def action_change(previous: Sequence[float], action: Sequence[float]) -> float:
 
 def scoop_reward(tip_to_pile_m: float, tip_to_terminal_m: float, penetrating: bool, w: float,
                  config: RewardConfig, volumetric_fill: float = 0.0,
-                 chassis_pitch_rad: float = 0.0, action_change: float = 0.0) -> tuple[float, dict[str, float]]:
+                 chassis_pitch_rad: float = 0.0, command_change: float = 0.0) -> tuple[float, dict[str, float]]:
     """Reward of one step and its terms.
 
     Args:
@@ -60,7 +60,7 @@ def scoop_reward(tip_to_pile_m: float, tip_to_terminal_m: float, penetrating: bo
         config: c_w, epsilon, distance scale, fill measure, overload cost.
         volumetric_fill: v_t, the particles' volume over the bucket's capacity (``fill_measure = scoop``).
         chassis_pitch_rad: the chassis pitch, rad, positive nose down (``c_pitch`` > 0).
-        action_change: u_t of :func:`action_change`, 0 to 1 (``c_action_change`` > 0).
+        command_change: u_t of :func:`action_change`, 0 to 1 (``c_action_change`` > 0).
 
     Returns:
         (reward, {"reward_progress": P_t, "reward_mass": c_w * w_t or 0}, with "reward_pitch" where
@@ -79,5 +79,5 @@ def scoop_reward(tip_to_pile_m: float, tip_to_terminal_m: float, penetrating: bo
         excess_deg = max(math.degrees(chassis_pitch_rad) - config.pitch_from_deg, 0.0)
         terms["reward_pitch"] = -config.c_pitch * excess_deg
     if config.c_action_change:
-        terms["reward_action_change"] = -config.c_action_change * action_change
+        terms["reward_action_change"] = -config.c_action_change * command_change
     return float(sum(terms.values())), terms

@@ -210,7 +210,7 @@ class ScoopEnv(gym.Env):
         pitch = chassis_pitch_rad(self.sim) if cfg.reward.c_pitch else 0.0
         reward, terms = scoop_reward(info["tip_to_pile_m"], info["tip_to_terminal_m"], info["penetrating"],
                                      float(np.float32(info["fill_factor"])), cfg.reward, info["volumetric_fill"],
-                                     chassis_pitch_rad=pitch, action_change=change)
+                                     chassis_pitch_rad=pitch, command_change=change)
         info.update(terms)
         terminated = info["reached"]  # the scoop ends at the terminal point, loaded or not
         return obs, float(reward), bool(terminated), False, info
