@@ -18,29 +18,23 @@ from pathlib import Path
 
 
 def main() -> int:
-    import yaml  # noqa: PLC0415
-
-    from autoscoop.evaluation.selection import rank_candidates  # noqa: PLC0415 - torch is slow to import
-    from autoscoop.training.checkpoints import snapshot_candidates  # noqa: PLC0415
-    from autoscoop.training.settings import curriculum_stages  # noqa: PLC0415
+    from autoscoop.commands.train_cmd import rank_run_snapshots  # noqa: PLC0415 - torch is slow to import
+    from autoscoop.training.settings import SelectionSettings  # noqa: PLC0415
 
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("run_dir", type=Path)
     parser.add_argument("--candidates", type=int, default=16)
     parser.add_argument("--episodes", type=int, default=40, help="episodes per stress case and candidate")
     parser.add_argument("--seed", type=int, default=20000, help="first validation seed (the recipes' 20000)")
-    parser.add_argument("--workers", type=int, default=2)
     parser.add_argument("--json", type=Path, required=True)
     args = parser.parse_args()
     if args.candidates < 1 or args.episodes < 1:
         parser.error("--candidates and --episodes must be at least 1")
 
-    spec = yaml.safe_load((args.run_dir / "hyperparams.yaml").read_text()) or {}
-    stages = curriculum_stages(spec)
-    candidates = snapshot_candidates(args.run_dir, args.candidates, stages[-1][0] if stages else 0)
     started = time.time()
-    ranked = rank_candidates([(f"episode {episode}", path) for episode, _, path in candidates], args.episodes,
-                             args.seed, workers=args.workers)
+    _, ranked, _ = rank_run_snapshots(args.run_dir, SelectionSettings(args.candidates, args.episodes, args.seed))
+    if not ranked:
+        parser.error(f"{args.run_dir}: no evaluated snapshot in its last curriculum world")
     args.json.parent.mkdir(parents=True, exist_ok=True)
     args.json.write_text(json.dumps({"run": str(args.run_dir), "candidates": args.candidates,
                                      "episodes": args.episodes, "seed": args.seed,

@@ -4,9 +4,14 @@ from __future__ import annotations
 
 import argparse
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from autoscoop.commands import add_config_args, seed_int
 from autoscoop.core.config import overrides_from_yaml, parse_set_args
+
+if TYPE_CHECKING:
+    from autoscoop.evaluation.selection import Ranked
+    from autoscoop.training.settings import SelectionSettings
 
 DEFAULT_EPISODES = 800
 """training episodes of a new run when ``--episodes`` is not given and its recipe names none (the paper's)."""
@@ -114,32 +119,53 @@ def selection_pending(run_dir: Path) -> bool:
     return selection_settings(yaml.safe_load(spec_path.read_text()) or {}) is not None
 
 
-def select_kept_policy(run_dir: Path, progress: bool = True) -> None:
-    """The recipe's ``selection``: validate the run's best snapshots of its last curriculum world on every stress
-    case and keep the one that falls least short (:mod:`autoscoop.evaluation.selection`); ``selection.json``
-    records each candidate's figures."""
+def rank_run_snapshots(run_dir: Path, settings: SelectionSettings,
+                       progress: bool = True) -> tuple[list[tuple[int, float, Path]], list[Ranked], int]:
+    """Validate the run's best snapshots of its last curriculum world on every stress case, as its recipe's
+    ``selection`` does (:mod:`autoscoop.evaluation.selection`), with ``settings``: how many candidates,
+    episodes per case, first seed.
+
+    Returns:
+        (candidates as (episode, periodic score, path), the validated candidates best first, the episode from
+        which the last world ran); both lists are empty when no snapshot was evaluated in that world.
+    """
     import os  # noqa: PLC0415
-    import time  # noqa: PLC0415
 
     import yaml  # noqa: PLC0415
 
     from autoscoop.evaluation.selection import rank_candidates  # noqa: PLC0415 - torch is slow to import
-    from autoscoop.training.checkpoints import keep_snapshot, lock_run_dir, snapshot_candidates  # noqa: PLC0415
-    from autoscoop.training.settings import curriculum_stages, selection_settings  # noqa: PLC0415
+    from autoscoop.training.checkpoints import snapshot_candidates  # noqa: PLC0415
+    from autoscoop.training.settings import curriculum_stages  # noqa: PLC0415
 
-    spec = yaml.safe_load((run_dir / "hyperparams.yaml").read_text())
-    settings = selection_settings(spec)
-    stages = curriculum_stages(spec)
+    stages = curriculum_stages(yaml.safe_load((run_dir / "hyperparams.yaml").read_text()) or {})
     last_world_from = stages[-1][0] if stages else 0
+    candidates = snapshot_candidates(run_dir, settings.candidates, last_world_from)
+    if not candidates:
+        return [], [], last_world_from
+    ranked = rank_candidates([(f"episode {episode}", path) for episode, _, path in candidates],
+                             settings.episodes, settings.seed, workers=min(os.cpu_count() or 1, 4),
+                             progress=progress)
+    return candidates, ranked, last_world_from
+
+
+def select_kept_policy(run_dir: Path, progress: bool = True) -> None:
+    """The recipe's ``selection``: validate the run's best snapshots of its last curriculum world on every stress
+    case and keep the one that falls least short (:func:`rank_run_snapshots`); ``selection.json``
+    records each candidate's figures."""
+    import time  # noqa: PLC0415
+
+    import yaml  # noqa: PLC0415
+
+    from autoscoop.training.checkpoints import keep_snapshot, lock_run_dir  # noqa: PLC0415 - torch is slow to import
+    from autoscoop.training.settings import selection_settings  # noqa: PLC0415
+
+    settings = selection_settings(yaml.safe_load((run_dir / "hyperparams.yaml").read_text()))
     started = time.time()
     with lock_run_dir(run_dir):
-        candidates = snapshot_candidates(run_dir, settings.candidates, last_world_from)
+        candidates, ranked, last_world_from = rank_run_snapshots(run_dir, settings, progress=progress)
         if not candidates:
             print(f"selection: no evaluated snapshot after episode {last_world_from}; the run keeps its policy")
             return
-        ranked = rank_candidates([(f"episode {episode}", path) for episode, _, path in candidates],
-                                 settings.episodes, settings.seed, workers=min(os.cpu_count() or 1, 4),
-                                 progress=progress)
         periodic = {path: score for _, score, path in candidates}
         best = ranked[0]
         episode = next(number for number, _, path in candidates if path == best.path)

@@ -145,7 +145,7 @@ class ScoopEnv(gym.Env):
         self._targets = np.array([0.0, cfg.robot.start_lift_rad, cfg.robot.start_tilt_rad])
         self._ever_inside = np.zeros(cfg.pile.n_particles, dtype=bool)
         self._previous = None
-        self._previous_action = np.zeros(3)  # the loader starts still (reward.c_action_change)
+        self._previous_action = np.zeros(state_mod.ACTION_SIZE)  # the loader starts still (reward.c_action_change)
         self._instabilities = self.sim.instability_count()
         if cfg.env.mass_source == "torque":
             from autoscoop.sim.load_cell import TorqueMassSensor  # noqa: PLC0415 - optional until used
