@@ -7,6 +7,7 @@ import importlib
 import sys
 
 from autoscoop.core.config import ConfigError
+from autoscoop.core.safe_files import describe_os_error
 from autoscoop.core.version import __version__
 
 COMMANDS = [
@@ -46,6 +47,9 @@ def main(argv: list[str] | None = None) -> int:
         return int(args.func(args) or 0)
     except (ConfigError, ValueError) as error:
         print(f"autoscoop {args.command}: error: {error}", file=sys.stderr)
+        return 2
+    except OSError as error:  # a full disk, a read-only folder, a file that went away: the path and the reason
+        print(f"autoscoop {args.command}: error: {describe_os_error(error)}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
         print(f"autoscoop {args.command}: interrupted", file=sys.stderr)

@@ -23,6 +23,7 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_valida
 from pydantic.fields import FieldInfo
 
 from autoscoop.core import kinematics
+from autoscoop.core.safe_files import UnsafeInputError, read_yaml, write_text_atomically
 
 
 class ConfigError(ValueError):
@@ -551,28 +552,17 @@ def from_dict(data: Mapping[str, Any]) -> ScoopConfig:
 
 
 def read_yaml_file(path: str | Path, what: str = "config file") -> Any:
-    """The parsed contents of a YAML file (``None`` if empty).
+    """The parsed contents of a YAML file (``None`` if empty), read within bounds
+    (:func:`autoscoop.core.safe_files.read_yaml`: size cap, no aliases, no duplicate keys).
 
     Raises:
-        ConfigError: naming the file when it is missing, a folder or unreadable, and the line and
-            column of a YAML syntax error.
+        ConfigError: naming the file when it is missing, a folder, unreadable, too large or not accepted
+            YAML (with the line and column).
     """
-    path = Path(path)
-    if path.is_dir():
-        raise ConfigError(f"{what} {path}: is a folder, not a YAML file")
     try:
-        text = path.read_text()
-    except FileNotFoundError:
-        raise ConfigError(f"{what} {path}: no such file") from None
-    except (OSError, UnicodeDecodeError) as error:
-        raise ConfigError(f"{what} {path}: cannot be read ({error})") from None
-    try:
-        return yaml.safe_load(text)
-    except yaml.YAMLError as error:
-        mark = getattr(error, "problem_mark", None)
-        where = f" at line {mark.line + 1}, column {mark.column + 1}" if mark is not None else ""
-        problem = getattr(error, "problem", None) or str(error)
-        raise ConfigError(f"{what} {path}: not valid YAML{where}: {problem}") from None
+        return read_yaml(path, what)
+    except UnsafeInputError as error:
+        raise ConfigError(str(error)) from None
 
 
 def overrides_from_yaml(path: str | Path) -> dict[str, Any]:
@@ -611,8 +601,8 @@ def load_yaml(path: str | Path) -> ScoopConfig:
 
 
 def save_yaml(config: ScoopConfig, path: str | Path) -> None:
-    """Write a config as nested YAML."""
-    Path(path).write_text(yaml.safe_dump(config.to_dict(), sort_keys=False))
+    """Write a config as nested YAML (atomically: a failed write leaves the previous file)."""
+    write_text_atomically(path, yaml.safe_dump(config.to_dict(), sort_keys=False))
 
 
 def parse_set_args(pairs: list[str] | None) -> dict[str, Any]:
