@@ -41,8 +41,9 @@ def test_bench_n_envs_one_is_its_own_baseline(tmp_path):
 
 
 def test_bench_n_envs_checks_its_arguments_before_measuring(tmp_path, capsys):
-    assert main(["bench", "--n-envs", "0", "--json", str(tmp_path / "x.json")]) == 2
-    assert "--n-envs" in capsys.readouterr().err
+    with pytest.raises(SystemExit) as usage_error:  # argparse refuses the count
+        main(["bench", "--n-envs", "0", "--json", str(tmp_path / "x.json")])
+    assert usage_error.value.code == 2 and "argument --n-envs" in capsys.readouterr().err
     assert main(["bench", "--n-envs", "2", "--json", str(tmp_path)]) == 2  # a folder: refused before any env starts
     assert "--json" in capsys.readouterr().err
     assert not (tmp_path / "x.json").exists()

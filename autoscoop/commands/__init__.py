@@ -1,4 +1,5 @@
-"""Sub-commands of the ``autoscoop`` command line, one module each, and their shared options."""
+"""Sub-commands of the ``autoscoop`` command line, one module each; their shared options are in
+:mod:`autoscoop.commands.options`, the checks and writers they share here."""
 
 from __future__ import annotations
 
@@ -10,17 +11,6 @@ from pathlib import Path
 from typing import Any
 
 from autoscoop.core.config import ScoopConfig, load_yaml, parse_set_args
-
-
-def seed_int(text: str) -> int:
-    """``type=`` of every ``--seed`` option: an integer, 0 or more (argparse names the option on failure)."""
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"must be an integer, 0 or more; got {text!r}") from None
-    if value < 0:
-        raise argparse.ArgumentTypeError(f"must be 0 or more (allowed range: [0, inf)); got {value}")
-    return value
 
 
 def check_output_file(path: Path, option: str) -> None:
@@ -67,13 +57,6 @@ def prepare_records_dir(path: Path, overwrite: bool, option: str = "--records") 
         hint = ("--overwrite removes only episode_*.npz records; move the other files away"
                 if overwrite else "use an empty or new folder, or --overwrite to replace its episode_*.npz records")
         raise ValueError(f"{option} {path}: folder is not empty ({len(left)} entries: {shown}); {hint}")
-
-
-def add_config_args(parser: argparse.ArgumentParser) -> None:
-    """``--config FILE.yaml`` and repeatable ``--set key=value``."""
-    parser.add_argument("--config", type=Path, help="YAML file with config sections (robot, pile, reward, env)")
-    parser.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
-                        help="override one config key, e.g. --set pile.angle_deg=28 (repeatable)")
 
 
 def config_from_args(args: argparse.Namespace) -> ScoopConfig:

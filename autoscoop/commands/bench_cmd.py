@@ -1,9 +1,11 @@
-"""``autoscoop bench``: physics steps/s, environment steps/s and real-time factor on one core.
+"""``autoscoop bench``: three measurements, one per mode.
 
-``autoscoop bench --n-envs N``: aggregate environment steps/s of N environments stepped together (as training
-builds them: subprocesses) against one, and the scaling ratio.
+  autoscoop bench               speed: physics steps/s, environment steps/s and real-time factor on one core
+  autoscoop bench --n-envs N    scaling: aggregate environment steps/s of N environments stepped together (as
+                                training builds them: subprocesses) against one, and the scaling ratio
+  autoscoop bench payload       payload: error of the payload mass estimated from the joint torques (paper eq. 4, 8)
 
-``autoscoop bench payload``: error of the payload mass estimated from the joint torques (paper eq. 4, 8).
+Each mode's own options are listed under its name below; --json, --config and --set apply to all three.
 """
 
 from __future__ import annotations
@@ -11,27 +13,37 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from autoscoop.commands import add_config_args, check_output_file, config_from_args, write_json
+from autoscoop.commands import check_output_file, config_from_args, write_json
+from autoscoop.commands.options import NON_NEGATIVE, POSITIVE, add_config_args, add_json_option, add_seed_option
 from autoscoop.evaluation.bench import run_bench, run_vec_bench
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
-    parser = subparsers.add_parser("bench", help="measure simulator speed on one core", description=__doc__)
+    parser = subparsers.add_parser("bench", help="measure simulator speed, its scaling, or the payload estimate",
+                                   description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("target", nargs="?", choices=["payload"],
-                        help="'payload': error of the torque mass estimate (autoscoop.evaluation.payload_bench) instead of speed")
-    parser.add_argument("--episodes", type=int, default=10, help="scripted episodes per repeat (payload: moving scoops)")
-    parser.add_argument("--repeats", type=int, default=3, help="timed repeats (the median is reported)")
-    parser.add_argument("--n-envs", type=int, metavar="N",
-                        help="measure aggregate env steps/s of N environments stepped together (SubprocVecEnv, as "
-                             "`train --n-envs N`) against 1, and the ratio, instead of the one-core figures")
-    parser.add_argument("--steps", type=int, default=2000,
-                        help="--n-envs: steps each environment takes per repeat (default 2000)")
-    parser.add_argument("--actions", choices=["random", "fixed"], default="random",
-                        help="--n-envs: uniform random actions (default) or the fixed middle action")
-    parser.add_argument("--seed", type=int, default=0, help="--n-envs: seed of the environments and actions")
-    parser.add_argument("--json", type=Path, help="write the results to this JSON file")
-    parser.add_argument("--records", type=Path, help="payload: write the static holds as records to this folder")
-    parser.add_argument("--calibration", type=Path, help="payload: the estimators' calibration YAML (default nominal)")
+                        help="'payload': the payload mode (autoscoop.evaluation.payload_bench); without it, speed "
+                             "or (with --n-envs) scaling")
+    size = parser.add_argument_group("how much to measure (the modes that use each say so)")
+    size.add_argument("--episodes", type=NON_NEGATIVE, default=10, metavar="N",
+                       help="speed: scripted episodes per repeat, 1 or more; payload: moving scoops after the static "
+                            "holds, 0 or more (default 10)")
+    size.add_argument("--repeats", type=POSITIVE, default=3, metavar="N",
+                       help="speed and scaling: timed repeats, the median is reported (default 3)")
+    scaling = parser.add_argument_group("scaling (autoscoop bench --n-envs N)")
+    scaling.add_argument("--n-envs", type=POSITIVE, metavar="N",
+                         help="measure aggregate env steps/s of N environments stepped together (SubprocVecEnv, as "
+                              "`train --n-envs N`) against 1, and the ratio, instead of the one-core figures")
+    scaling.add_argument("--steps", type=POSITIVE, default=2000, metavar="N",
+                         help="steps each environment takes per repeat (default 2000)")
+    scaling.add_argument("--actions", choices=["random", "fixed"], default="random",
+                         help="uniform random actions (default) or the fixed middle action")
+    add_seed_option(scaling, what="seed of the environments and actions")
+    payload = parser.add_argument_group("payload (autoscoop bench payload)")
+    payload.add_argument("--records", type=Path, metavar="DIR", help="write the static holds as records to this folder")
+    payload.add_argument("--calibration", type=Path, metavar="FILE.yaml",
+                         help="the estimators' calibration YAML (default nominal)")
+    add_json_option(parser, "the results")
     add_config_args(parser)
     parser.set_defaults(func=run)
 
@@ -45,6 +57,8 @@ def run(args: argparse.Namespace) -> int:
         return run_payload_bench_cmd(args)
     if args.n_envs is not None:
         return run_vec_bench_cmd(args)
+    if args.episodes < 1:
+        raise ValueError(f"--episodes must be 1 or more to measure speed; got {args.episodes}")
     result = run_bench(config_from_args(args), episodes=args.episodes, repeats=args.repeats)
     print(f"physics steps/s   {result['physics_steps_per_s']:10.0f}   (timestep {result['timestep_s']} s)")
     print(f"env steps/s       {result['env_steps_per_s']:10.1f}")
@@ -60,9 +74,6 @@ def run(args: argparse.Namespace) -> int:
 
 def run_vec_bench_cmd(args: argparse.Namespace) -> int:
     """``bench --n-envs N``: the table of env steps/s with 1 and N environments and their ratio."""
-    if args.n_envs < 1 or args.steps < 1 or args.repeats < 1:
-        raise ValueError(f"--n-envs, --steps and --repeats must be 1 or more "
-                         f"(got {args.n_envs}, {args.steps}, {args.repeats})")
     from autoscoop.training.factories import make_vec_env  # noqa: PLC0415 - SB3 only for this measurement
 
     result = run_vec_bench(make_vec_env, config_from_args(args), n_envs=args.n_envs, steps=args.steps,

@@ -17,14 +17,16 @@ import time
 from pathlib import Path
 
 from autoscoop.agents.loading import load_policy
-from autoscoop.commands import (
+from autoscoop.commands import check_output_dir, check_output_file, config_from_args, write_json
+from autoscoop.commands.options import (
+    NumberIn,
     add_config_args,
-    check_output_dir,
-    check_output_file,
-    config_from_args,
-    seed_int,
-    write_json,
+    add_episodes_option,
+    add_out_option,
+    add_seed_option,
+    add_trust_option,
 )
+from autoscoop.core.config import PILE_ANGLE_RANGE_DEG
 from autoscoop.evaluation.evaluate import evaluate, format_table, summarize
 
 PILE_ANGLES_DEG = (25.0, 32.0, 40.0)
@@ -37,21 +39,19 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                                    description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--policies", nargs="+", default=["default", "heuristic"],
                         help="controllers to evaluate (default: default heuristic)")
-    parser.add_argument("--angles", nargs="+", type=float, default=list(PILE_ANGLES_DEG),
+    parser.add_argument("--angles", nargs="+", type=NumberIn(*PILE_ANGLE_RANGE_DEG, "deg"), default=list(PILE_ANGLES_DEG),
                         help="pile angles, degrees (default 25 32 40)")
-    parser.add_argument("--episodes", type=int, default=100, help="episodes per controller and pile (default 100)")
-    parser.add_argument("--seed", type=seed_int, default=0, help="seed of the first episode")
+    add_episodes_option(parser, default=100, what="episodes per controller and pile")
+    add_seed_option(parser)
     parser.add_argument("--manual", nargs="*", type=Path, default=None,
                         help=f"folders or files of manual episode records (default {DEFAULT_MANUAL} if it exists)")
-    parser.add_argument("--out", type=Path, default=Path("out/compare"), help="output folder (default out/compare)")
-    parser.add_argument("--trust", action="store_true", help="allow loading a pickled SB3 zip from outside its run directory")
+    add_out_option(parser, Path("out/compare"))
+    add_trust_option(parser)
     add_config_args(parser)
     parser.set_defaults(func=run)
 
 
 def run(args: argparse.Namespace) -> int:
-    if args.episodes < 1:
-        raise SystemExit(f"--episodes must be at least 1, got {args.episodes}")
     from autoscoop.report.data import find_record_files, load_episodes  # noqa: PLC0415 - matplotlib when needed
     from autoscoop.report.markdown import write_report  # noqa: PLC0415
 

@@ -5,7 +5,8 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from autoscoop.commands import add_config_args, config_from_args
+from autoscoop.commands import config_from_args
+from autoscoop.commands.options import add_config_args
 from autoscoop.core.config import save_yaml
 
 

@@ -13,13 +13,14 @@ import time
 from pathlib import Path
 
 from autoscoop.agents.loading import load_policy
-from autoscoop.commands import (
+from autoscoop.commands import check_output_dir, check_output_file, config_from_args, write_json
+from autoscoop.commands.options import (
+    NumberIn,
     add_config_args,
-    check_output_dir,
-    check_output_file,
-    config_from_args,
-    seed_int,
-    write_json,
+    add_episodes_option,
+    add_out_option,
+    add_policy_option,
+    add_seed_option,
 )
 from autoscoop.core.config import ScoopConfig
 from autoscoop.core.policy import Policy
@@ -31,21 +32,18 @@ DEFAULT_OUT = Path("out/demo")
 def register(subparsers: argparse._SubParsersAction) -> None:
     parser = subparsers.add_parser("demo", help="watch the shipped controller scoop: metrics, video, figures",
                                    description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--policy", default="default", help="default (the shipped policy), heuristic or a policy file")
-    parser.add_argument("--episodes", type=int, default=10, help="episodes for the metrics table (default 10)")
-    parser.add_argument("--seed", type=seed_int, default=0, help="seed of the first episode, the one filmed")
-    parser.add_argument("--out", type=Path, default=DEFAULT_OUT, help=f"output folder (default {DEFAULT_OUT})")
-    parser.add_argument("--fps", type=float, default=16.0, help="video frames per simulated second (default 16)")
+    add_policy_option(parser)
+    add_episodes_option(parser, default=10, what="episodes for the metrics table")
+    add_seed_option(parser, what="seed of the first episode, the one filmed")
+    add_out_option(parser, DEFAULT_OUT)
+    parser.add_argument("--fps", type=NumberIn(8.0, 1000.0), default=16.0,
+                        help="video frames per simulated second, 8 or more (default 16)")
     parser.add_argument("--no-video", action="store_true", help="skip the video (figures and table only)")
     add_config_args(parser)
     parser.set_defaults(func=run)
 
 
 def run(args: argparse.Namespace) -> int:
-    if args.episodes < 1:
-        raise SystemExit(f"--episodes must be at least 1, got {args.episodes}")
-    if args.fps < 8:
-        raise SystemExit(f"--fps must be at least 8 frames per simulated second, got {args.fps}")
     from autoscoop.report.data import load_episodes  # noqa: PLC0415 - matplotlib only when needed
     from autoscoop.report.markdown import write_report  # noqa: PLC0415
 

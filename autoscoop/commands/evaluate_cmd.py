@@ -6,13 +6,14 @@ import argparse
 from pathlib import Path
 
 from autoscoop.agents.loading import load_policy
-from autoscoop.commands import (
+from autoscoop.commands import check_output_file, config_from_args, prepare_records_dir, write_json
+from autoscoop.commands.options import (
     add_config_args,
-    check_output_file,
-    config_from_args,
-    prepare_records_dir,
-    seed_int,
-    write_json,
+    add_episodes_option,
+    add_json_option,
+    add_policy_option,
+    add_seed_option,
+    add_trust_option,
 )
 from autoscoop.core.policy import config_for_policy
 from autoscoop.evaluation.evaluate import evaluate, format_table, summarize
@@ -21,23 +22,21 @@ from autoscoop.evaluation.evaluate import evaluate, format_table, summarize
 def register(subparsers: argparse._SubParsersAction) -> None:
     parser = subparsers.add_parser("eval", help="evaluate a controller over N episodes",
                                    description=__doc__)
-    parser.add_argument("--policy", default="heuristic", help="heuristic, default (shipped policy) or a policy file")
-    parser.add_argument("--episodes", type=int, default=100, help="number of episodes (default 100)")
-    parser.add_argument("--seed", type=seed_int, default=0, help="seed of the first episode (0 or more)")
-    parser.add_argument("--json", type=Path, help="write the summary (and each episode) to this JSON file")
+    add_policy_option(parser, default="heuristic")
+    add_episodes_option(parser, default=100)
+    add_seed_option(parser)
+    add_json_option(parser, "the summary (and each episode)")
     parser.add_argument("--records", type=Path, metavar="DIR",
                         help="save each episode's record here (redraw figures with `autoscoop report DIR`); "
                              "the folder must be new or empty, unless --overwrite")
     parser.add_argument("--overwrite", action="store_true",
                         help="with --records: first remove the folder's episode_*.npz records")
-    parser.add_argument("--trust", action="store_true", help="allow loading a pickled SB3 zip from outside its run directory")
+    add_trust_option(parser)
     add_config_args(parser)
     parser.set_defaults(func=run)
 
 
 def run(args: argparse.Namespace) -> int:
-    if args.episodes < 1:
-        raise SystemExit(f"--episodes must be at least 1, got {args.episodes}")
     config = config_from_args(args)
     if args.json:  # fail before the first episode, not after the last
         check_output_file(args.json, "--json")

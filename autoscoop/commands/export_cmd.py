@@ -12,31 +12,41 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from autoscoop.commands import add_config_args, config_from_args, write_json
+from autoscoop.commands import config_from_args, write_json
+from autoscoop.commands.options import (
+    NON_NEGATIVE,
+    add_config_args,
+    add_json_option,
+    add_policy_option,
+    add_trust_option,
+)
 from autoscoop.core.policy import state_frame_of
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
     parser = subparsers.add_parser("export", help="export a policy's actor to ONNX (runs with onnxruntime alone)",
                                    description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--policy", default="default", help="default, a .safetensors file or a run directory")
-    parser.add_argument("--onnx", type=Path, required=True, metavar="OUT.onnx", help="the file to write")
-    parser.add_argument("--check-states", type=int, default=10_000,
+    add_policy_option(parser, accepts="default, a .safetensors file or a run directory")
+    parser.add_argument("--onnx", type=onnx_path, required=True, metavar="OUT.onnx", help="the file to write")
+    parser.add_argument("--check-states", type=NON_NEGATIVE, default=10_000, metavar="N",
                         help="random states for the parity check (default 10000; 0 skips it)")
-    parser.add_argument("--json", type=Path, help="write the parity check and timings to this JSON file")
-    parser.add_argument("--trust", action="store_true", help="allow a pickled SB3 zip as the policy")
+    add_json_option(parser, "the parity check and timings")
+    add_trust_option(parser, "allow a pickled SB3 zip as the policy")
     add_config_args(parser)
     parser.set_defaults(func=run)
+
+
+def onnx_path(text: str) -> Path:
+    """``type=`` of ``--onnx``: a path ending in ``.onnx``."""
+    if not text.endswith(".onnx"):
+        raise argparse.ArgumentTypeError(f"must name a .onnx file; got {text!r}")
+    return Path(text)
 
 
 def run(args: argparse.Namespace) -> int:
     from autoscoop.agents.loading import load_policy  # noqa: PLC0415
     from autoscoop.deploy.export import check_parity, export_onnx, exportable_actor, random_states  # noqa: PLC0415
 
-    if args.onnx.suffix != ".onnx":
-        raise SystemExit(f"--onnx must name a .onnx file, got {args.onnx}")
-    if args.check_states < 0:
-        raise SystemExit(f"--check-states must be 0 or more, got {args.check_states}")
     config = config_from_args(args)
     policy = load_policy(args.policy, config, trust=args.trust)
     actor = exportable_actor(policy)

@@ -15,6 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
+from autoscoop.commands.options import NumberIn
 from autoscoop.core.payload import PayloadCalibration, fit_calibration
 from autoscoop.envs.records import load_record
 
@@ -29,11 +30,11 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     calibrate = actions.add_parser("calibrate", help="fit torque offsets and the payload lever arm from records",
                                    description=__doc__)
     calibrate.add_argument("records", nargs="+", type=Path, help="episode records (.npz) or folders of them")
-    calibrate.add_argument("--out", type=Path, default=Path("payload_calibration.yaml"),
+    calibrate.add_argument("--out", type=Path, default=Path("payload_calibration.yaml"), metavar="FILE.yaml",
                            help="calibration YAML to write (default payload_calibration.yaml)")
     calibrate.add_argument("--prior", type=Path, help="calibration to start from (its gravity and the lever "
                                                       "arm's unobservable direction are kept)")
-    calibrate.add_argument("--max-joint-step", type=float, default=STATIC_JOINT_STEP_RAD, metavar="RAD",
+    calibrate.add_argument("--max-joint-step", type=NumberIn(0.0, 1.0, "rad"), default=STATIC_JOINT_STEP_RAD, metavar="RAD",
                            help="in records not marked static: use steps whose joints moved less than this "
                                 f"since the previous step (default {STATIC_JOINT_STEP_RAD} rad)")
     calibrate.set_defaults(func=run_calibrate)
@@ -111,8 +112,6 @@ def run_payload_bench_cmd(args: argparse.Namespace) -> int:
     from autoscoop.commands import config_from_args, write_json  # noqa: PLC0415
     from autoscoop.evaluation.payload_bench import run_payload_bench  # noqa: PLC0415
 
-    if args.episodes < 0:
-        raise ValueError(f"--episodes must be at least 0, got {args.episodes}")
     config = config_from_args(args)
     calibration = PayloadCalibration.load(args.calibration) if args.calibration else None
     result = run_payload_bench(config, episodes=args.episodes, calibration=calibration, records_dir=args.records)

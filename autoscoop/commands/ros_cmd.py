@@ -12,7 +12,17 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from autoscoop.commands import add_config_args, check_output_file, config_from_args, seed_int, write_json
+from autoscoop.commands import check_output_file, config_from_args, write_json
+from autoscoop.commands.options import (
+    POSITIVE_SECONDS,
+    add_config_args,
+    add_episodes_option,
+    add_json_option,
+    add_policy_option,
+    add_seed_option,
+    add_set_option,
+    add_trust_option,
+)
 from autoscoop.core.config import ConfigError, ScoopConfig, parse_set_args
 
 
@@ -23,33 +33,33 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
     controller = nodes.add_parser("controller", help="run a policy on the robot's topics, with watchdog and limits",
                                   description=_CONTROLLER_DOC, formatter_class=argparse.RawDescriptionHelpFormatter)
-    controller.add_argument("--policy", default="default",
-                            help="default (shipped), heuristic, a .onnx file (onnxruntime only) or a policy file")
+    add_policy_option(controller, accepts="default (shipped), heuristic, a .onnx file (onnxruntime only) or a policy file")
     controller.add_argument("--config", type=Path, help="the robot's YAML: limits, timeouts, calibration, topics")
     controller.add_argument("--record", type=Path, metavar="DIR", help="write one episode record per scoop here")
-    controller.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
-                            help="scene/task config the policy was made for, e.g. --set pile.angle_deg=28 (labels "
-                                 "the records; the heuristic aims at reward.terminal_*)")
-    controller.add_argument("--trust", action="store_true", help="allow a pickled SB3 zip as the policy")
+    add_set_option(controller, "scene/task config the policy was made for, e.g. --set pile.angle_deg=28 (labels "
+                               "the records; the heuristic aims at reward.terminal_*)")
+    add_trust_option(controller, "allow a pickled SB3 zip as the policy")
     controller.add_argument("--check", action="store_true",
                             help="check the configuration and the policy, print them, and exit without ROS")
-    controller.add_argument("remap", nargs="*", metavar="NAME:=NEW", help="ROS remappings and private parameters")
+    controller.add_argument("remap", nargs="*", type=ros_remap, metavar="NAME:=NEW",
+                            help="ROS remappings and private parameters")
     controller.set_defaults(func=run_controller)
 
     sim = nodes.add_parser("sim", help="the MuJoCo scene behind the robot's topics (like Gazebo)",
                            description=_SIM_DOC, formatter_class=argparse.RawDescriptionHelpFormatter)
-    sim.add_argument("--episodes", type=int, default=0, help="episodes to run, then exit (default 0: until stopped)")
-    sim.add_argument("--seed", type=seed_int, default=0, help="seed of the first episode (as in autoscoop eval)")
-    sim.add_argument("--json", type=Path, help="write the summary (as autoscoop eval does) to this JSON file")
+    add_episodes_option(sim, default=0, what="episodes to run, then exit (0: until stopped)", minimum=0)
+    add_seed_option(sim, what="seed of the first episode (as in autoscoop eval)")
+    add_json_option(sim, "the summary (as autoscoop eval does)")
     for flag, key, unit, what in LINK_OPTIONS:
         sim.add_argument(flag, type=float, default=None, metavar=unit.upper().replace("/", "_").replace("*", "_"),
                          help=f"{what}, {unit}: the config key {key} (same as --set {key}=...; default 0)")
     sim.add_argument("--robot-config", type=Path,
                      help="the robot's YAML: topic and joint names, and potentiometer calibration (raw readings)")
     sim.add_argument("--label", help="policy name for the summary (default: the controller's ~policy parameter)")
-    sim.add_argument("--wait-s", type=float, default=60.0, help="give up when no controller appears within this long")
+    sim.add_argument("--wait-s", type=POSITIVE_SECONDS, default=60.0,
+                     help="give up when no controller appears within this long, s (default 60)")
     add_config_args(sim)
-    sim.add_argument("remap", nargs="*", metavar="NAME:=NEW", help="ROS remappings")
+    sim.add_argument("remap", nargs="*", type=ros_remap, metavar="NAME:=NEW", help="ROS remappings")
     sim.set_defaults(func=run_sim)
     parser.set_defaults(func=lambda args: parser.print_help() or 2)
 
@@ -85,10 +95,11 @@ episode on the scoop topic. --episodes N --json OUT writes the summary of `autos
 """
 
 
-def _check_remaps(remaps: list[str]) -> None:
-    bad = [r for r in remaps if ":=" not in r]
-    if bad:
-        raise SystemExit(f"unexpected argument(s) {bad}: only ROS remappings NAME:=NEW may follow the options")
+def ros_remap(text: str) -> str:
+    """``type=`` of the arguments after the options: ROS remappings ``NAME:=NEW`` only."""
+    if ":=" not in text:
+        raise argparse.ArgumentTypeError(f"unexpected {text!r}: only ROS remappings NAME:=NEW may follow the options")
+    return text
 
 
 def build_controller(args: argparse.Namespace):
@@ -105,7 +116,6 @@ def build_controller(args: argparse.Namespace):
 
 
 def run_controller(args: argparse.Namespace) -> int:
-    _check_remaps(args.remap)
     try:
         core = build_controller(args)
     except ConfigError as error:
@@ -126,9 +136,6 @@ def run_controller(args: argparse.Namespace) -> int:
 
 
 def run_sim(args: argparse.Namespace) -> int:
-    _check_remaps(args.remap)
-    if args.episodes < 0:
-        raise SystemExit(f"--episodes must be 0 (until stopped) or more, got {args.episodes}")
     from autoscoop.deploy.robot_config import load_robot_config  # noqa: PLC0415
     from autoscoop.deploy.ros1 import RosUnavailable  # noqa: PLC0415
     from autoscoop.deploy.sim_bridge import SimBridge  # noqa: PLC0415

@@ -6,16 +6,18 @@ from __future__ import annotations
 import argparse
 import os
 import time
-from pathlib import Path
 
 from autoscoop.agents.loading import load_policy
-from autoscoop.commands import (
+from autoscoop.commands import check_output_dir, check_output_file, config_from_args, write_json
+from autoscoop.commands.options import (
     add_config_args,
-    check_output_dir,
-    check_output_file,
-    config_from_args,
-    seed_int,
-    write_json,
+    add_episodes_option,
+    add_json_option,
+    add_out_option,
+    add_policy_option,
+    add_seed_option,
+    add_trust_option,
+    add_workers_option,
 )
 from autoscoop.core.version import __version__
 from autoscoop.evaluation.stress import case_names, run_stress, select_cases
@@ -25,28 +27,20 @@ from autoscoop.report.stress import stress_table, verdict, write_stress_report
 def register(subparsers: argparse._SubParsersAction) -> None:
     parser = subparsers.add_parser("stress", help="run a controller over the stress cases and check the thresholds",
                                    description=__doc__)
-    parser.add_argument("--policy", default="default", help="default (shipped policy), heuristic or a policy file")
-    parser.add_argument("--episodes", type=int, default=100, help="episodes per case (default 100)")
-    parser.add_argument("--seed", type=seed_int, default=0,
-                        help="seed of the first episode; each case runs seeds SEED..SEED+EPISODES-1 (default 0)")
+    add_policy_option(parser)
+    add_episodes_option(parser, default=100, what="episodes per case")
+    add_seed_option(parser, what="seed of the first episode; each case runs seeds SEED..SEED+EPISODES-1")
     parser.add_argument("--cases", default=None, metavar="NAME,NAME",
                         help=f"which cases (default: all): {', '.join(case_names())}")
-    parser.add_argument("--workers", type=int, default=1,
-                        help="run cases in this many worker processes (default 1; results are the same)")
-    parser.add_argument("--json", type=Path, required=True, metavar="FILE",
-                        help="write the rows (statistics, thresholds, pass flags, each episode) here")
-    parser.add_argument("--out", type=Path, required=True, metavar="DIR",
-                        help="write stress.md (the table) and stress.png (the heat map) into this folder")
-    parser.add_argument("--trust", action="store_true", help="allow loading a pickled SB3 zip from outside its run directory")
+    add_workers_option(parser)
+    add_json_option(parser, "the rows (statistics, thresholds, pass flags, each episode)", required=True)
+    add_out_option(parser, None, "folder for stress.md (the table) and stress.png (the heat map)", required=True)
+    add_trust_option(parser)
     add_config_args(parser)
     parser.set_defaults(func=run)
 
 
 def run(args: argparse.Namespace) -> int:
-    if args.episodes < 1:
-        raise ValueError(f"--episodes must be at least 1, got {args.episodes}")
-    if args.workers < 1:
-        raise ValueError(f"--workers must be at least 1, got {args.workers}")
     cases = select_cases(args.cases)
     config = config_from_args(args)
     check_output_file(args.json, "--json")  # fail before the first episode, not after the last

@@ -17,6 +17,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from autoscoop.commands import check_output_dir, check_output_file, write_json
+from autoscoop.commands.options import POSITIVE, add_episodes_option, add_json_option, add_out_option
 from autoscoop.core.version import __version__
 
 if TYPE_CHECKING:
@@ -33,20 +34,19 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument("--space", type=Path, metavar="SPACE.yaml",
                         help="the search space: config keys (--set keys), algorithm keys (--hyper keys), seeds "
                              "(docs/sweep.example.yaml); with --resume optional, and then it must be the recorded one")
-    parser.add_argument("--trials", type=int, metavar="N",
+    parser.add_argument("--trials", type=POSITIVE, metavar="N",
                         help="trials in all: a multiple of the space's grid (seeds x grid lists)")
-    parser.add_argument("--episodes", type=int, metavar="E", help="training episodes per trial")
-    parser.add_argument("--out", type=Path, required=True, metavar="DIR",
-                        help="the sweep's folder (trials' run directories, Tune's state, the report); "
-                             "on a cluster it must be shared storage, at the same path on every node")
+    add_episodes_option(parser, default=None, what="training episodes per trial")
+    add_out_option(parser, None, "the sweep's folder (trials' run directories, Tune's state, the report); "
+                                 "on a cluster it must be shared storage, at the same path on every node", required=True)
     parser.add_argument("--address", metavar="HOST:PORT",
                         help="run on this Ray cluster (`ray start --head` prints it); default: Ray embedded here")
     parser.add_argument("--resume", action="store_true",
                         help="continue the interrupted sweep in --out; finished trials are not trained again")
-    parser.add_argument("--json", type=Path, metavar="FILE", help="also write the table and the sweep's facts here")
-    parser.add_argument("--num-cpus", type=int, metavar="N",
+    add_json_option(parser, "the table and the sweep's facts, too,")
+    parser.add_argument("--num-cpus", type=POSITIVE, metavar="N",
                         help="CPUs embedded Ray may use, one per trial (default: all of this machine's)")
-    parser.add_argument("--max-concurrent", type=int, metavar="N",
+    parser.add_argument("--max-concurrent", type=POSITIVE, metavar="N",
                         help="most trials at once (default: as many as the CPUs allow)")
     parser.set_defaults(func=run)
 
@@ -64,7 +64,7 @@ def run(args: argparse.Namespace) -> int:
     )
     from autoscoop.training.sweep_space import check_episodes, load_space, plan_trials, space_from_dict  # noqa: PLC0415
 
-    _check_numbers(args)
+    _check_cluster_options(args)
     if args.resume:
         plan = read_plan(args.out)
         given = load_space(args.space) if args.space else None
@@ -97,11 +97,7 @@ def run(args: argparse.Namespace) -> int:
     return _write_outputs(args, result, space)
 
 
-def _check_numbers(args: argparse.Namespace) -> None:
-    for option, value in (("--trials", args.trials), ("--episodes", args.episodes), ("--num-cpus", args.num_cpus),
-                          ("--max-concurrent", args.max_concurrent)):
-        if value is not None and value < 1:
-            raise ValueError(f"{option} must be at least 1, got {value}")
+def _check_cluster_options(args: argparse.Namespace) -> None:
     if args.address and args.num_cpus is not None:
         raise ValueError("--num-cpus is for embedded Ray only; a cluster's nodes give their CPUs to `ray start`")
 

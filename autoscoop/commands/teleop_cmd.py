@@ -13,7 +13,15 @@ import argparse
 import os
 from pathlib import Path
 
-from autoscoop.commands import add_config_args, config_from_args, seed_int
+from autoscoop.commands import config_from_args
+from autoscoop.commands.options import (
+    POSITIVE_SECONDS,
+    NumberIn,
+    add_config_args,
+    add_episodes_option,
+    add_out_option,
+    add_seed_option,
+)
 
 MANUAL_TIME_LIMIT_S = 20.0
 """Episode limit for people: the paper's manual cycles took 10 s on average, against 8 s for the controller's limit."""
@@ -22,19 +30,18 @@ MANUAL_TIME_LIMIT_S = 20.0
 def register(subparsers: argparse._SubParsersAction) -> None:
     parser = subparsers.add_parser("teleop", help="drive the loader with the keyboard and record the episodes",
                                    description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--out", type=Path, default=Path("out/manual"), help="folder for the records (default out/manual)")
-    parser.add_argument("--episodes", type=int, default=0, help="stop after this many episodes (default: until the window closes)")
-    parser.add_argument("--seed", type=seed_int, default=0, help="seed of the first episode")
-    parser.add_argument("--speed", type=float, default=1.0, help="simulated seconds per wall second (0.5: half speed)")
-    parser.add_argument("--time-limit", type=float, default=MANUAL_TIME_LIMIT_S,
+    add_out_option(parser, Path("out/manual"), "folder for the records")
+    add_episodes_option(parser, default=0, what="stop after this many episodes (0: until the window closes)", minimum=0)
+    add_seed_option(parser)
+    parser.add_argument("--speed", type=NumberIn(0.05, 4.0), default=1.0,
+                        help="simulated seconds per wall second, in [0.05, 4] (0.5: half speed)")
+    parser.add_argument("--time-limit", type=POSITIVE_SECONDS, default=MANUAL_TIME_LIMIT_S,
                         help=f"episode time limit, s (default {MANUAL_TIME_LIMIT_S:g}; the controllers get 8)")
     add_config_args(parser)
     parser.set_defaults(func=run)
 
 
 def run(args: argparse.Namespace) -> int:
-    if not 0.05 <= args.speed <= 4.0:
-        raise SystemExit(f"--speed must be in [0.05, 4], got {args.speed}")
     from autoscoop.core.state import CommandLimits  # noqa: PLC0415
     from autoscoop.envs.scoop import make_scoop_env  # noqa: PLC0415
     from autoscoop.evaluation.recorder import EpisodeRecorder  # noqa: PLC0415

@@ -6,7 +6,15 @@ import argparse
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from autoscoop.commands import add_config_args, seed_int
+from autoscoop.commands.options import (
+    NON_NEGATIVE,
+    POSITIVE,
+    add_config_args,
+    add_episodes_option,
+    add_out_option,
+    add_seed_option,
+    add_trust_option,
+)
 from autoscoop.core.config import overrides_from_yaml, parse_set_args
 
 if TYPE_CHECKING:
@@ -38,28 +46,26 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                              "robot_smooth: the shipped default's, robot_level with reward.distance_scale_m 0.3 "
                              "and reward.c_action_change 1 (autoscoop/training/recipes/NAME.yaml, laid over the "
                              "algorithm's YAML)")
-    parser.add_argument("--episodes", type=int, default=None,
-                        help=f"training episodes (default {DEFAULT_EPISODES}, as in the paper; "
-                             "not with --resume: a resumed run keeps its recorded count)")
-    parser.add_argument("--seed", type=seed_int, help="random seed (0 or more; default 0)")
-    parser.add_argument("--n-envs", type=int, help="parallel simulators in subprocesses (default 1)")
-    parser.add_argument("--checkpoint-every", type=int, help="episodes between checkpoints (default 50)")
-    parser.add_argument("--eval-every", type=int,
+    add_episodes_option(parser, default=None, what=f"training episodes (default: the recipe's, else "
+                        f"{DEFAULT_EPISODES} as in the paper; not with --resume: a resumed run keeps its recorded count)")
+    add_seed_option(parser, default=None, what="random seed", shown_default=DEFAULTS["seed"])
+    parser.add_argument("--n-envs", type=POSITIVE, metavar="N", help="parallel simulators in subprocesses (default 1)")
+    parser.add_argument("--checkpoint-every", type=POSITIVE, metavar="N", help="episodes between checkpoints (default 50)")
+    parser.add_argument("--eval-every", type=NON_NEGATIVE, metavar="N",
                         help="episodes between evaluations of the deterministic policy; the best is kept "
                              "(0: keep the last; default 50)")
-    parser.add_argument("--eval-episodes", type=int, help="episodes per evaluation (default 10)")
-    parser.add_argument("--out", type=Path, help="run directory (default runs/ALGO-sSEED-TIME)")
+    parser.add_argument("--eval-episodes", type=POSITIVE, metavar="N", help="episodes per evaluation (default 10)")
+    add_out_option(parser, None, "run directory (default runs/ALGO-sSEED-TIME)")
     parser.add_argument("--resume", type=Path, metavar="RUN_DIR",
                         help="continue an interrupted run with its recorded settings (--config, --set, --hyper, "
                              "--init, --out and settings other than the recorded ones are refused)")
     parser.add_argument("--init", type=Path, metavar="RUN_DIR",
                         help="fine-tune: start from the policy of this finished run (same --algo)")
-    parser.add_argument("--trust", action="store_true",
-                        help="let --init load a policy.zip its run.json does not vouch for (zips run pickle)")
+    add_trust_option(parser, "let --init load a policy.zip its run.json does not vouch for (zips run pickle)")
     parser.add_argument("--hyper", action="append", default=[], metavar="SECTION.KEY=VALUE",
                         help="override a setting of the algorithm's YAML, e.g. hyperparams.learning_rate=3e-4 "
                              "or noise.sigma_start=0.05 (repeatable)")
-    parser.add_argument("--demo-episodes", type=int, metavar="N",
+    parser.add_argument("--demo-episodes", type=NON_NEGATIVE, metavar="N",
                         help="put N scripted (heuristic) scoops in the replay buffer before learning "
                              "(off-policy algorithms; default: the algorithm's YAML, demo_episodes, 0 when it has none)")
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
@@ -85,12 +91,6 @@ def run(args: argparse.Namespace) -> int:
             from autoscoop.training.settings import load_recipe  # noqa: PLC0415 - torch is slow to import
 
             args.episodes = int(load_recipe(args.algo, args.recipe).get("episodes", DEFAULT_EPISODES))
-        if args.episodes < 1 or args.n_envs < 1 or args.checkpoint_every < 1 or args.eval_episodes < 1:
-            raise ValueError("--episodes, --n-envs, --checkpoint-every and --eval-episodes must be at least 1")
-        if args.eval_every < 0:
-            raise ValueError("--eval-every must be 0 (off) or more")
-        if args.demo_episodes is not None and args.demo_episodes < 0:
-            raise ValueError("--demo-episodes must be 0 (none) or more")
         # only the keys the file sets: its defaults must not undo the algorithm's own (reward.c_w)
         flat = overrides_from_yaml(args.config) if args.config else {}
         flat.update(parse_set_args(args.overrides))

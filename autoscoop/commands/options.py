@@ -1,0 +1,122 @@
+"""The options several ``autoscoop`` commands share, each declared once here, with checked types.
+
+A command adds the ones it takes (``add_episodes_option(parser, default=100)``), giving only what differs
+(its default, the words of its help). Counts and numbers are checked by their ``type=``: a bad value is a
+usage error that argparse reports naming the option (``argument --episodes: must be 1 or more; got 0``),
+exit code 2, before the command starts.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+from pathlib import Path
+
+
+class AtLeast:
+    """``type=`` of an integer option whose value must be ``minimum`` or more (a count, a seed)."""
+
+    def __init__(self, minimum: int) -> None:
+        self.minimum = minimum
+        self.__name__ = f"integer of at least {minimum}"  # argparse names the type by it
+
+    def __call__(self, text: str) -> int:
+        try:
+            value = int(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"must be an integer, {self.minimum} or more; got {text!r}") from None
+        if value < self.minimum:
+            raise argparse.ArgumentTypeError(f"must be {self.minimum} or more; got {value}")
+        return value
+
+
+class NumberIn:
+    """``type=`` of a number option whose value must be finite and in [low, high] (``None``: unbounded)."""
+
+    def __init__(self, low: float | None = None, high: float | None = None, unit: str = "") -> None:
+        self.low, self.high, self.unit = low, high, unit
+        self.__name__ = f"number in {self._span()}"
+
+    def _span(self) -> str:
+        low = "-inf" if self.low is None else f"{self.low:g}"
+        high = "inf" if self.high is None else f"{self.high:g}"
+        return f"[{low}, {high}]" + (f" {self.unit}" if self.unit else "")
+
+    def __call__(self, text: str) -> float:
+        try:
+            value = float(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"must be a number in {self._span()}; got {text!r}") from None
+        if not math.isfinite(value) or (self.low is not None and value < self.low) \
+                or (self.high is not None and value > self.high):
+            raise argparse.ArgumentTypeError(f"must be in {self._span()}; got {text}")
+        return value
+
+
+POSITIVE = AtLeast(1)
+"""a count that must be 1 or more: episodes, workers, repeats."""
+NON_NEGATIVE = AtLeast(0)
+"""a seed, or a count where 0 means none (or: until stopped)."""
+POSITIVE_SECONDS = NumberIn(1e-3, None, "s")
+"""a duration, at least a millisecond."""
+
+POLICY_HELP = "heuristic, default (the shipped policy) or a policy file"
+"""what ``--policy`` accepts in most commands (see :func:`autoscoop.agents.loading.load_policy`)."""
+TRUST_HELP = "allow loading a pickled SB3 zip from outside its run directory"
+
+
+def add_policy_option(parser: argparse.ArgumentParser, default: str = "default", accepts: str = POLICY_HELP) -> None:
+    """``--policy NAME``: the controller to run (``accepts``: what the command takes)."""
+    parser.add_argument("--policy", default=default, help=f"{accepts} (default {default})")
+
+
+def add_trust_option(parser: argparse.ArgumentParser, why: str = TRUST_HELP) -> None:
+    """``--trust``: allow a policy file that runs pickle when loaded."""
+    parser.add_argument("--trust", action="store_true", help=why)
+
+
+def add_episodes_option(parser: argparse.ArgumentParser, default: int | None, what: str = "number of episodes",
+                        minimum: int = 1) -> None:
+    """``--episodes N``: a count of at least ``minimum`` (0 only where the command gives 0 a meaning)."""
+    kind = POSITIVE if minimum == 1 else NON_NEGATIVE if minimum == 0 else AtLeast(minimum)
+    shown = "" if default is None else f" (default {default})"
+    parser.add_argument("--episodes", type=kind, default=default, metavar="N", help=f"{what}{shown}")
+
+
+def add_seed_option(parser: argparse.ArgumentParser, default: int | None = 0,
+                    what: str = "seed of the first episode", shown_default: int | None = None) -> None:
+    """``--seed N``: 0 or more (``shown_default``: the default the help names when ``default`` is ``None``)."""
+    shown = default if default is not None else shown_default
+    shown = "" if shown is None else f"; default {shown}"
+    parser.add_argument("--seed", type=NON_NEGATIVE, default=default, metavar="N", help=f"{what} (0 or more{shown})")
+
+
+def add_workers_option(parser: argparse.ArgumentParser) -> None:
+    """``--workers N``: processes that share the work; the results do not depend on it."""
+    parser.add_argument("--workers", type=POSITIVE, default=1, metavar="N",
+                        help="run in this many worker processes (default 1; the results are the same)")
+
+
+def add_json_option(parser: argparse.ArgumentParser, what: str, required: bool = False) -> None:
+    """``--json FILE``: where the command writes its results (``what``: what goes in)."""
+    parser.add_argument("--json", type=Path, required=required, metavar="FILE", help=f"write {what} to this JSON file")
+
+
+def add_out_option(parser: argparse.ArgumentParser, default: Path | None, what: str = "output folder",
+                   required: bool = False) -> None:
+    """``--out DIR``: the folder the command writes into."""
+    shown = f" (default {default})" if default is not None else ""
+    parser.add_argument("--out", type=Path, default=default, required=required, metavar="DIR", help=f"{what}{shown}")
+
+
+def add_set_option(parser: argparse.ArgumentParser,
+                   what: str = "override one config key, e.g. --set pile.angle_deg=28 (repeatable)") -> None:
+    """Repeatable ``--set key=value`` (into ``args.overrides``)."""
+    parser.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE", help=what)
+
+
+def add_config_args(parser: argparse.ArgumentParser) -> None:
+    """``--config FILE.yaml`` and repeatable ``--set key=value``: the scene and task config."""
+    parser.add_argument("--config", type=Path, metavar="FILE.yaml",
+                        help="YAML file with config sections (robot, pile, reward, env)")
+    add_set_option(parser)
