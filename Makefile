@@ -35,7 +35,7 @@ test: install-test system-deps
 	$(BIN)/pytest
 
 bench: install
-	$(BIN)/autoscoop bench --json benchmarks/results/bench.json
+	$(BIN)/autoscoop bench --json benchmarks/results/speed/bench.json
 
 clean:
 	rm -rf $(VENV) *.egg-info out

@@ -1,4 +1,4 @@
-"""What a change of the physics does to speed and to the scripted scoop: the figures behind README's Speed.
+"""What a change of the physics does to speed and to the scripted scoop: the figures behind docs/performance.md.
 
 Runs the scripted controller for ``--episodes`` episodes (seeds from ``--seed``) on the default pile with
 config overrides (``--set pile.rolling=false``), MuJoCo option edits applied after compiling
@@ -25,6 +25,7 @@ import re
 import subprocess
 import sys
 import tempfile
+from pathlib import Path
 
 import numpy as np
 
@@ -118,10 +119,15 @@ def main() -> int:
     parser.add_argument("--option", action="append", default=[], metavar="KEY=VALUE", help="edit model.opt")
     parser.add_argument("--contact-time-constant", type=float, default=0.0, metavar="S")
     parser.add_argument("--instructions", action="store_true", help="count instructions under callgrind")
+    parser.add_argument("--json", type=Path, metavar="FILE", help="also write the result here")
     parser.add_argument("--json-line", action="store_true", help=argparse.SUPPRESS)
     args = parser.parse_args()
     result = count_instructions(sys.argv[1:]) if args.instructions else run(args)
     print(json.dumps(result) if args.json_line else json.dumps(result, indent=1))
+    if args.json:
+        from autoscoop.core.safe_files import write_json_atomically  # noqa: PLC0415 - as the other imports, late
+
+        write_json_atomically(args.json, result, indent=1)
     return 0
 
 

@@ -2,7 +2,7 @@
 
 Starts a private rosmaster, the controller (``--policy heuristic``, the default robot config), the
 simulator (episodes until stopped, its sensor topics remapped into ``sim/``) and, in a process of
-its own, a relay (this script with ``--relay``: :class:`autoscoop.deploy.ros1.probe.FaultRelay`)
+its own, a relay (this script with ``--relay``: :class:`ros_probe.FaultRelay` from ``tests/``)
 that passes the simulator's sensor messages on to the controller's topics. While a scoop runs,
 every 0.5-2 s of healthy driving the relay breaks one input for a while: silence, a frozen stamp,
 stamps 10 s old or 100 s ahead, out of order, NaN, a burst with garbage, or estop; now and then the
@@ -17,7 +17,7 @@ injected and caught, the worst time to a stop, bad commands (non-finite or outsi
 be 0), commands with a non-zero speed while the status said stopped (must be 0), and the
 controller's memory (VmRSS) when the faults begin and at the end.
 
-    .venv/bin/python benchmarks/ros_soak.py --minutes 10 --json benchmarks/results/ros_soak.json
+    .venv/bin/python benchmarks/ros_soak.py --minutes 10 --json benchmarks/results/deploy/ros_soak.json
 """
 
 from __future__ import annotations
@@ -41,7 +41,9 @@ from autoscoop.deploy.robot_config import RobotNodeConfig
 from autoscoop.deploy.ros1 import import_rospy, subscribers
 from autoscoop.deploy.ros1.controller_node import NODE_NAME
 from autoscoop.deploy.ros1.master import RosMaster
-from autoscoop.deploy.ros1.probe import RELAY_FAULTS, SENSOR_TOPICS, STAMPED_TOPICS, FaultRelay
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))  # the stand-in robot is a test harness
+from ros_probe import RELAY_FAULTS, SENSOR_TOPICS, STAMPED_TOPICS, FaultRelay
 
 SOURCE = "sim"
 """The namespace the simulator's sensor topics are remapped into."""

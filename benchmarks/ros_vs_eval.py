@@ -5,7 +5,7 @@ runs N episodes in real time, then evaluates the same policy for the same seeds 
 the same sensor link (``sensor.delay_s`` and the noise keys) and the same mass source, and prints both with the topics' delay (stamp -> arrival, measured by the controller) and the
 simulator's real-time factor. Acceptance: mean fill factors within 10 points.
 
-    .venv/bin/python benchmarks/ros_vs_eval.py --episodes 20 --json benchmarks/results/ros_vs_eval.json
+    .venv/bin/python benchmarks/ros_vs_eval.py --episodes 20 --json out/ros_vs_eval.json
     .venv/bin/python benchmarks/ros_vs_eval.py --episodes 20 --delay-s 0.05 --noise   # a harsher link
 """
 

@@ -7,7 +7,7 @@ period, and measures the time from the last ``joint_states`` message to the firs
 The requirement: within ``input_timeout_s`` + one control period (0.5 + 0.25 s) in every trial.
 Each estop trial measures ``estop`` true -> zero ``cmd_vel`` (requirement: one control period).
 
-    .venv/bin/python benchmarks/ros_watchdog.py --trials 100 --json benchmarks/results/ros_watchdog.json
+    .venv/bin/python benchmarks/ros_watchdog.py --trials 100 --json benchmarks/results/deploy/ros_watchdog.json
 """
 
 from __future__ import annotations
@@ -24,7 +24,9 @@ import numpy as np
 from autoscoop.deploy.robot_config import RobotNodeConfig
 from autoscoop.deploy.ros1 import import_rospy
 from autoscoop.deploy.ros1.master import RosMaster
-from autoscoop.deploy.ros1.probe import RobotProbe, estop_trial, latency_summary, watchdog_trial
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))  # the stand-in robot is a test harness
+from ros_probe import RobotProbe, estop_trial, latency_summary, watchdog_trial
 
 
 def measure(trials: int, estop_trials: int, seed: int = 0, log: Path | None = None) -> dict:

@@ -14,7 +14,7 @@ import grimp
 import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
-SOURCE_DIRS = ("autoscoop", "tools", "benchmarks")
+SOURCE_DIRS = ("autoscoop", "tools", "benchmarks", "release", "experiments")
 
 
 def _tool(name: str) -> str:

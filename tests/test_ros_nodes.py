@@ -18,10 +18,11 @@ from autoscoop.deploy.ros1 import INSTALL_HINT, ros_available
 if not ros_available():
     pytest.skip(f"ROS 1 is not available here: {INSTALL_HINT}", allow_module_level=True)
 
+from ros_probe import RobotProbe, estop_trial, latency_summary, watchdog_trial
+
 from autoscoop.deploy.robot_config import RobotNodeConfig
 from autoscoop.deploy.ros1 import import_rospy
 from autoscoop.deploy.ros1.master import RosMaster
-from autoscoop.deploy.ros1.probe import RobotProbe, estop_trial, latency_summary, watchdog_trial
 from autoscoop.envs.records import load_record
 from autoscoop.evaluation.evaluate import summarize
 

@@ -10,6 +10,7 @@ import json
 import math
 import subprocess
 import sys
+from pathlib import Path
 
 import pytest
 
@@ -192,15 +193,17 @@ def test_the_future_stamp_bound_is_a_checked_config_key():
 # -------------------------------------------------------------------- over a real rosmaster
 PROBE = """
 import json
+import sys
+sys.path.insert(0, TESTS_DIR)
 from autoscoop.deploy.ros1 import import_rospy
-from autoscoop.deploy.ros1.probe import STAMP_FAULTS, RobotProbe, stamp_trial
+from ros_probe import STAMP_FAULTS, RobotProbe, stamp_trial
 rospy = import_rospy()
 rospy.init_node("autoscoop_stamp_probe", anonymous=True, disable_signals=True)
 probe = RobotProbe(rate_hz=50.0)
 probe.wait_for_controller(timeout_s=60)
 print(json.dumps({kind: stamp_trial(probe, kind) for kind in STAMP_FAULTS}))
 probe.close()
-"""
+""".replace("TESTS_DIR", repr(str(Path(__file__).resolve().parent)))
 """The stand-in robot, in a process of its own (rospy allows one node per process, and the other ROS
 tests' node lives in pytest's)."""
 

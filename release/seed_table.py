@@ -1,10 +1,10 @@
-"""Success per stress case and seed, and the median over seeds: the reliability table of issue 13.
+"""Success per stress case and seed, and the median over seeds: the recipe's reliability table.
 
 Reads the JSON files of ``autoscoop stress --policy RUN --episodes 30 --seed 1000 --json FILE`` (one per
 training seed) and prints a Markdown table: the nominal fill factor, the success rate of each case, the
 cases held, and the median row the acceptance reads (each case's median success >= 0.85).
 
-    .venv/bin/python benchmarks/seed_table.py s10=runs/a/stress30.json s11=runs/b/stress30.json ...
+    .venv/bin/python release/seed_table.py s10=runs/a/stress30.json s11=runs/b/stress30.json ...
 """
 
 from __future__ import annotations

@@ -6,7 +6,7 @@ it ranks the best ``--candidates`` snapshots with ``--episodes`` per case on the
 on) and writes every candidate's figures; the run itself (its ``policy.*`` and ``selection.json``) is not
 touched. Run the pick it names through ``autoscoop stress --episodes 100`` to see whether it is better.
 
-    .venv/bin/python benchmarks/reselect.py runs/smooth-s10 --candidates 16 --episodes 40 --json out/reselect.json
+    .venv/bin/python release/reselect.py runs/smooth-s10 --candidates 16 --episodes 40 --json out/reselect.json
 """
 
 from __future__ import annotations

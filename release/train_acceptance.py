@@ -1,6 +1,6 @@
-"""Issue 3's acceptance: `autoscoop train` with all defaults, per seed; time it; evaluate each policy.
+"""The paper recipe's acceptance: `autoscoop train --recipe paper`, per seed; time it; evaluate each policy.
 
-Run by hand (long): ``.venv/bin/python benchmarks/train_acceptance.py --seeds 0 1 2 --out runs/acceptance``.
+Run by hand (long): ``.venv/bin/python release/train_acceptance.py --seeds 0 1 2 --out runs/acceptance``.
 Writes ``OUT/summary.json`` with each seed's wall time and evaluation (100 episodes on the default
 pile) and the median fill factor and success rate over seeds.
 """
@@ -30,7 +30,7 @@ def main() -> int:
         wall = None
         if not args.eval_only:
             start = time.time()
-            subprocess.run([*cli, "train", "--seed", str(seed), "--out", str(run_dir), "--no-progress"], check=True)
+            subprocess.run([*cli, "train", "--recipe", "paper", "--seed", str(seed), "--out", str(run_dir), "--no-progress"], check=True)
             wall = time.time() - start
         eval_json = run_dir / "eval_default_pile.json"
         subprocess.run([*cli, "eval", "--policy", str(run_dir), "--episodes", str(args.episodes),

@@ -5,8 +5,8 @@ the last second it reports the cutting edge's height peak to peak (mm) and the c
 (rad/s, rms); a physics step or contact stiffness that lets the loaded loader keep rocking on its
 wheels shows as a pitch rate well above the few mrad/s of a resting loader.
 
-    .venv/bin/python tools/hold_rocking.py --episodes 10
-    .venv/bin/python tools/hold_rocking.py --episodes 10 --set env.timestep_s=0.025 --set pile.rolling=false \
+    .venv/bin/python experiments/hold_rocking.py --episodes 10
+    .venv/bin/python experiments/hold_rocking.py --episodes 10 --set env.timestep_s=0.025 --set pile.rolling=false \
         --contact-time-constant 0.0417
 """
 

@@ -1,14 +1,14 @@
 """The scripted controller's 50-episode figures with the sensor of the first versions: to the bit as before.
 
-Issue 13 asks that, with ``randomize.preset=none``, the scripted controller's fill, mass and cycle
+The randomised world was added on the promise that, with ``randomize.preset=none``, the scripted controller's fill, mass and cycle
 figures stay what they were. Two things changed its figures since, both on purpose and neither in
 the world: the odometry (``sensor.odometry_window_steps``, now 2; 1 is the instantaneous wheel speed
 of then) and the heuristic's slip share for dead reckoning (``push_slip_fraction``, 0.35 then, tuned to
 that odometry's under-reading; now 0.2). With both set back, this compares the 50-episode summary
 (seeds 0-49) with the JSON written by the code before the change
-(``benchmarks/results/restructure/heuristic_50ep_before.json``) and prints whether every figure is equal.
+(``benchmarks/results/eval/heuristic_50ep_first_sensor.json``) and prints whether every figure is equal.
 
-    .venv/bin/python benchmarks/old_sensor_heuristic.py
+    .venv/bin/python experiments/old_sensor_heuristic.py
 """
 
 from __future__ import annotations
@@ -22,7 +22,7 @@ from autoscoop.agents.loading import heuristic_for
 from autoscoop.core.config import ScoopConfig
 from autoscoop.evaluation.evaluate import evaluate, summarize
 
-BEFORE = Path(__file__).resolve().parent / "results" / "restructure" / "heuristic_50ep_before.json"
+BEFORE = Path(__file__).resolve().parents[1] / "benchmarks" / "results" / "eval" / "heuristic_50ep_first_sensor.json"
 KEYS = ("fill_factor_mean", "fill_factor_std", "mass_kg_mean", "mass_kg_std", "cycle_time_mean", "cycle_time_std",
         "success_rate")
 

@@ -1,4 +1,4 @@
-"""Does a load in the bucket tip the loader forward when it stands still? (issue 13's heavy earth)
+"""Does a load in the bucket tip the loader forward when it stands still? (heavy earth)
 
 The loader stands on flat ground away from the pile, arm and bucket held by their servos at a lift
 angle (rad, positive lowers the arm: 0.23 is the start, -0.10 the highest) and a tilt angle (rad,
@@ -6,7 +6,7 @@ negative curls the bucket back), and a payload (kg) is added to the bucket body'
 of mass. After 2 s (96 physics steps) the script prints the chassis pitch (deg, positive nose down, as
 the IMU reports it: ``sim/load_cell.py``) and the tip's height (m) per payload.
 
-    .venv/bin/python benchmarks/static_tipping.py > benchmarks/results/robust/recipe_robot_v4/static_tipping.txt
+    .venv/bin/python experiments/static_tipping.py > benchmarks/results/experiments/static_tipping.txt
 """
 
 from __future__ import annotations

@@ -4,11 +4,11 @@ Runs ``autoscoop stress``'s cases (``autoscoop.evaluation.stress``) for each run
 policy and reports, per seed, its nominal fill and success and each case's success, then the median
 over seeds of each case's success, with each run's training wall time (``run.json``).
 
-Acceptance (issue 13): every seed reaches nominal fill >= 0.70 and success >= 0.90, and the median
+The reliability bar: every seed reaches nominal fill >= 0.70 and success >= 0.90, and the median
 over seeds meets success >= 0.85 on every stress case.
 
-    .venv/bin/python benchmarks/seed_reliability.py runs/robot-s10 runs/robot-s11 ... --episodes 50 \\
-        --workers 2 --json benchmarks/results/robust/seed_reliability.json
+    .venv/bin/python release/seed_reliability.py runs/robot-s10 runs/robot-s11 ... --episodes 50 \\
+        --workers 2 --json out/seed_reliability.json
 """
 
 from __future__ import annotations

@@ -4,7 +4,7 @@ u_t is ``reward.c_action_change``'s measure (``autoscoop/core/reward.py``, ``act
 over drive, lift and tilt of ((a_t - a_t-1) / 2)^2, 0 for a steady command and 1 for a full flip of all
 three, a_-1 = 0. Prints, per policy and case, the mean u_t and the share of steps with u_t > 0.5.
 
-    .venv/bin/python benchmarks/action_flips.py runs/RUN_A runs/RUN_B --cases nominal,heavy --episodes 10
+    .venv/bin/python experiments/action_flips.py runs/RUN_A runs/RUN_B --cases nominal,heavy --episodes 10
 """
 
 from __future__ import annotations

@@ -5,14 +5,14 @@ Plain Stable-Baselines3 DDPG (no autoscoop callback, no noise schedule, no check
 episodes have ended; it prints the training success of each block of 50 episodes. On Pendulum-v1
 (``--task pendulum``) the same SB3 learns with one or two environments.
 
-Measured 2026-12-02 (SB3 2.9.2, seed 0): scoop, 1 environment: 0.02, 0.16, 0.76, 0.72, 0.86, 0.80,
+Measured (SB3 2.9.2, seed 0): scoop, 1 environment: 0.02, 0.16, 0.76, 0.72, 0.86, 0.80,
 0.84, 0.82; 2 environments: 0.00 in every block, also with SB3's MlpPolicy and with both
 environments reset with the same seed (the same piles). (``--no-noise`` fails with one environment
 too: it needs the exploration noise.)
 Pendulum, 12,000 steps: mean return -162 with 1 environment, -170 with 2 (both learned). So the
 cause lies with two scoop environments, not with autoscoop's training loop or SB3's vectorised DDPG.
 
-Measured again 2026-12-02 (a later session), 300 episodes, seeds 0-7: 1 environment learned in 4 of 8
+Measured again in a later session, 300 episodes, seeds 0-7: 1 environment learned in 4 of 8
 seeds (0, 1, 4, 6: success 0.84, 0.86, 0.94, 0.82 in the last 50 episodes); 2 environments in 0 of 8,
 and in 0 of 8 with ``--gradient-steps 2`` (one update per transition, as with one environment). With
 150 episodes of the kept environment counted (seeds 0-5): storing the first environment's transitions
@@ -25,7 +25,7 @@ so SB3's two-environment buffer layout is not the cause either. What breaks it i
 environments' transitions at once; why is still open. With 50 scripted scoops in the replay buffer
 (``autoscoop train --recipe robot --n-envs 2``) two environments do learn (seed 10).
 
-    .venv/bin/python benchmarks/n_envs_learning_repro.py --n-envs 2 [--policy mlp] [--no-noise] [--episodes 300]
+    .venv/bin/python experiments/n_envs_learning_repro.py --n-envs 2 [--policy mlp] [--no-noise] [--episodes 300]
         [--seed S] [--gradient-steps 2] [--store first|second|flat] [--second idle]
 """
 

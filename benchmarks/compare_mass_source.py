@@ -1,11 +1,11 @@
 """Does a policy scoop as well when w_t comes from the joint torques as when it counts particles?
 
 Runs the same policy over the same seeds twice, with ``env.mass_source=truth`` and ``=torque``,
-and prints the fill factor of each (mean +- std), their difference in points (issue 5's acceptance:
+and prints the fill factor of each (mean +- std), their difference in points (the acceptance:
 at most 5), and how far the w_t the policy saw under ``torque`` was from the truth.
 
-    .venv/bin/python tools/compare_mass_source.py --policy default --episodes 100 --json out/mass_source.json
-    .venv/bin/python tools/compare_mass_source.py --policy heuristic --episodes 30   # the mechanism check
+    .venv/bin/python benchmarks/compare_mass_source.py --policy default --episodes 100 --json out/mass_source.json
+    .venv/bin/python benchmarks/compare_mass_source.py --policy heuristic --episodes 30   # the mechanism check
 
 The scripted ``heuristic`` does not read w_t, so its two figures agree exactly; a learned policy is
 the real test. Extra ``--set key=value`` overrides apply to both runs (e.g. env.load_cell_noise_nm=0.5).

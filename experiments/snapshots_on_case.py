@@ -6,7 +6,7 @@ every candidate it names again on the given cases (default: heavy), ``--episodes
 candidate, its validation success and shortfall beside success / volumetric fill / overload per case:
 whether any snapshot of the run holds a case, or the choice among them cannot help.
 
-    .venv/bin/python benchmarks/snapshots_on_case.py runs/RUN --cases heavy --episodes 40
+    .venv/bin/python experiments/snapshots_on_case.py runs/RUN --cases heavy --episodes 40
 """
 
 from __future__ import annotations

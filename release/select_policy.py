@@ -6,7 +6,7 @@ from ``--seed`` (default 5000: the reported evaluations use seeds 0-99, so the c
 them), and ranks the candidates by their worst success over the piles, then their mean delivered
 fill (fill factor of successful episodes, zero for failures).
 
-    .venv/bin/python benchmarks/select_policy.py runs/acc2-s0/ddpg-s0/evaluated/episode_00{4,5,6,7,8}*.safetensors default
+    .venv/bin/python release/select_policy.py runs/acc2-s0/ddpg-s0/evaluated/episode_00{4,5,6,7,8}*.safetensors default
 """
 
 from __future__ import annotations

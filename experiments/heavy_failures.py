@@ -7,7 +7,7 @@ particles in the bucket, the largest chassis pitch (degrees, positive: nose down
 the last 2 s, the highest the tip rose (world z, m; the terminal point is ``reward.terminal_z_m`` high)
 and how close the tip came to the terminal point (m; success needs ``reward.epsilon_m``).
 
-    .venv/bin/python benchmarks/heavy_failures.py --policy default --seeds 0-99 [--failed-only]
+    .venv/bin/python experiments/heavy_failures.py --policy default --seeds 0-99 [--failed-only]
 """
 
 from __future__ import annotations

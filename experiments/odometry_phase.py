@@ -12,7 +12,7 @@ trained on the one phase reads a speed about 0.25 m/s too high and keeps scoopin
 odometry (``sensor.odometry_window_steps = 2``: the mean over two steps, as an encoder counts the
 wheels' angle) reads the same on either phase.
 
-    .venv/bin/python benchmarks/odometry_phase.py --delay-s 0.05 --odometry-window-steps 1 --policy heuristic
+    .venv/bin/python experiments/odometry_phase.py --delay-s 0.05 --odometry-window-steps 1 --policy heuristic
 """
 
 from __future__ import annotations

@@ -1,8 +1,8 @@
 """Ship a trained policy as the package's ``default``, with its metrics beside it.
 
-``.venv/bin/python benchmarks/ship_policy.py RUN_DIR`` copies ``RUN_DIR/policy.safetensors`` and its
+``.venv/bin/python release/ship_policy.py RUN_DIR`` copies ``RUN_DIR/policy.safetensors`` and its
 ``.json`` (or, with ``--file``, a snapshot such as ``RUN_DIR/evaluated/episode_00700.safetensors``, picked by
-``benchmarks/select_policy.py``) to ``autoscoop/policies/default.*``, evaluates it on the three public piles (25, 32, 40
+``release/select_policy.py``) to ``autoscoop/policies/default.*``, evaluates it on the three public piles (25, 32, 40
 degrees; 100 episodes each, seeds 0-99) and writes ``autoscoop/policies/default.metrics.json``.
 """
 

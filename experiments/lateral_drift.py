@@ -4,7 +4,7 @@ The state has no lateral position, so this is what a 3-D distance to the termina
 that the policy cannot see. Also counts the episodes whose tip came within epsilon of the terminal
 point in the arm's plane (x, z) and the ones that did in 3-D.
 
-    .venv/bin/python tools/lateral_drift.py --policy default --episodes 100 --set pile.angle_deg=40
+    .venv/bin/python experiments/lateral_drift.py --policy default --episodes 100 --set pile.angle_deg=40
 """
 
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""Stand-ins on the controller's topics, for tests and benchmarks of ``autoscoop ros controller``.
+"""Stand-ins on the controller's topics, for tests and benchmarks of ``autoscoop ros controller`` (test-only: not shipped in the package).
 
 :class:`RobotProbe` is a stand-in robot (watchdog latency, estop, fuzzed messages): it plays the
 robot's sensors at a fixed rate with values one can change or stop per topic, or replace by
@@ -52,10 +52,10 @@ class RobotProbe:
                  tilt_rad: float = 0.0, speed_mps: float = 0.0, range_m: float = 0.3, lift_torque_nm: float = -20.0,
                  tilt_torque_nm: float = -1.0) -> None:
         self.rospy = import_rospy()
-        from geometry_msgs.msg import Twist  # noqa: PLC0415
-        from nav_msgs.msg import Odometry  # noqa: PLC0415
-        from sensor_msgs.msg import JointState, Range  # noqa: PLC0415
-        from std_msgs.msg import Bool, Float64  # noqa: PLC0415
+        from geometry_msgs.msg import Twist
+        from nav_msgs.msg import Odometry
+        from sensor_msgs.msg import JointState, Range
+        from std_msgs.msg import Bool, Float64
 
         self.msg = {"JointState": JointState, "Odometry": Odometry, "Range": Range, "Float64": Float64,
                     "Bool": Bool, "Twist": Twist}
@@ -235,7 +235,7 @@ def stamp_trial(probe: RobotProbe, kind: str, timeout_s: float = 2.0) -> float:
 
 def latency_summary(values: list[float]) -> dict[str, float]:
     """Median, 99th percentile, max and count of latencies, s."""
-    import numpy as np  # noqa: PLC0415
+    import numpy as np
 
     a = np.asarray(values, dtype=float)
     return {"n": len(a), "median_s": float(np.median(a)), "p99_s": float(np.percentile(a, 99)),
@@ -298,7 +298,7 @@ class FaultRelay:
 
     def __init__(self, source: str = "sim", topics: TopicsSection | None = None, seed: int = 0) -> None:
         self.rospy = rospy = import_rospy()
-        from std_msgs.msg import Bool  # noqa: PLC0415
+        from std_msgs.msg import Bool
 
         self.bool = Bool
         self.topics = topics = topics or TopicsSection()
