@@ -58,6 +58,8 @@ def run(args: argparse.Namespace) -> int:
     started = time.perf_counter()
     base = config_from_args(args)
     check_outputs(args.out, [records_folder(args.out, spec, angle) for spec in args.policies for angle in args.angles])
+    for spec in args.policies:  # a bad --policies entry fails now, not after the others' episodes
+        load_policy(spec, base, trust=args.trust)
     manual = args.manual if args.manual is not None else ([DEFAULT_MANUAL] if DEFAULT_MANUAL.is_dir() else [])
     record_dirs: list[Path] = []
     summaries = []

@@ -15,6 +15,7 @@ from pathlib import Path
 from autoscoop.commands import check_output_file, config_from_args, write_json
 from autoscoop.commands.options import (
     POSITIVE_SECONDS,
+    NumberIn,
     add_config_args,
     add_episodes_option,
     add_json_option,
@@ -51,7 +52,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     add_seed_option(sim, what="seed of the first episode (as in autoscoop eval)")
     add_json_option(sim, "the summary (as autoscoop eval does)")
     for flag, key, unit, what in LINK_OPTIONS:
-        sim.add_argument(flag, type=float, default=None, metavar=unit.upper().replace("/", "_").replace("*", "_"),
+        sim.add_argument(flag, type=NumberIn(0.0, None, unit), default=None, metavar=unit.upper().replace("/", "_").replace("*", "_"),
                          help=f"{what}, {unit}: the config key {key} (same as --set {key}=...; default 0)")
     sim.add_argument("--robot-config", type=Path,
                      help="the robot's YAML: topic and joint names, and potentiometer calibration (raw readings)")

@@ -48,11 +48,11 @@ def run(args: argparse.Namespace) -> int:
     from autoscoop.evaluation.teleop import SessionOptions, TeleopKeys, help_lines, run_session  # noqa: PLC0415
     from autoscoop.sim.glbackend import has_display  # noqa: PLC0415
 
+    config = config_from_args(args).with_overrides({"env.max_episode_s": args.time_limit})  # usage errors first
     if not has_display(os.environ):
         raise SystemExit("autoscoop teleop needs a display (no DISPLAY or WAYLAND_DISPLAY is set)")
     import mujoco.viewer  # noqa: PLC0415
 
-    config = config_from_args(args).with_overrides({"env.max_episode_s": args.time_limit})
     env = EpisodeRecorder(make_scoop_env(config), {"policy": "manual", "source": "teleop"})
     keys = TeleopKeys(CommandLimits.for_robot(config.robot))
     print("autoscoop teleop: drive the loader into the pile, fill the bucket, lift it to the terminal point.")
