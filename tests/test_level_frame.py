@@ -152,7 +152,8 @@ def test_the_robot_level_recipe_is_the_robot_recipe_in_the_level_frame_with_twic
     import typing
 
     from autoscoop.commands.train_cmd import register
-    from autoscoop.training.settings import RECIPES, load_recipe
+    from autoscoop.training.recipes import RECIPES
+    from autoscoop.training.settings import load_recipe
     from autoscoop.training.sweep_space import SweepSpace
 
     robot, level = load_recipe("ddpg", "robot"), load_recipe("ddpg", "robot_level")

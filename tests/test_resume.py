@@ -22,7 +22,7 @@ from autoscoop.cli import main
 from autoscoop.core.config import ScoopConfig, save_yaml
 from autoscoop.training.model_state import load_model_state, save_model_state
 
-FAST = ["--set", "pile.variants=2", "--no-progress"]
+FAST = ["--recipe", "paper", "--set", "pile.variants=2", "--no-progress"]
 RUN = ["--episodes", "8", "--checkpoint-every", "3", "--eval-every", "2", "--eval-episodes", "1", *FAST]
 """8 episodes, checkpoints after 3 and 6, evaluations at 2, 4, 6 and 8."""
 
@@ -202,7 +202,8 @@ def _crashed_run(tmp_path: Path, monkeypatch, crash_after: int = 5, hyper: dict 
     monkeypatch.setattr(EpisodeLogger, "end_episode", crash)
     with pytest.raises(KeyboardInterrupt):
         train_mod.train(train_mod.TrainArgs(episodes=8, checkpoint_every=3, eval_every=2, eval_episodes=1, out=out,
-                                            progress=False, overrides={"pile.variants": 2}, hyper=hyper or {}))
+                                            progress=False, overrides={"pile.variants": 2}, hyper=hyper or {},
+                                            recipe="paper"))
     monkeypatch.setattr(EpisodeLogger, "end_episode", original)
     return out
 
@@ -407,5 +408,7 @@ def test_a_new_run_still_gets_the_documented_defaults(tmp_path, monkeypatch):
     monkeypatch.setattr(train_mod, "train", lambda args: seen.append(args) or tmp_path)
     assert main(["train"]) == 0
     args = seen[0]
-    assert (args.algo, args.episodes, args.seed, args.n_envs, args.checkpoint_every, args.eval_every,
-            args.eval_episodes, args.demo_episodes) == ("ddpg", 800, 0, 1, 50, 50, 10, None)
+    assert (args.algo, args.recipe, args.episodes, args.seed, args.n_envs, args.checkpoint_every, args.eval_every,
+            args.eval_episodes, args.demo_episodes) == ("ddpg", "robot_smooth", 5000, 0, 1, 50, 50, 10, None)
+    assert main(["train", "--recipe", "paper"]) == 0  # the paper's recipe, with its own episode count
+    assert (seen[1].recipe, seen[1].episodes) == ("paper", 800)

@@ -24,7 +24,8 @@ from autoscoop.agents.policy_files import ActorPolicy, PolicyFileError, save_act
 from autoscoop.cli import main
 from autoscoop.core.config import ScoopConfig
 
-FAST = ["--set", "pile.variants=2", "--no-progress"]
+FAST = ["--recipe", "paper", "--set", "pile.variants=2", "--no-progress"]
+"""the paper's recipe (no demonstrations, no selection) on a small pile: quick runs."""
 
 
 def linear_sizes(module: nn.Module) -> list[tuple[int, int]]:
@@ -104,7 +105,7 @@ def test_resume_continues_steps_and_keeps_the_replay_buffer(tmp_path, monkeypatc
 
     monkeypatch.setattr(EpisodeLogger, "end_episode", crash_after_five)
     with pytest.raises(KeyboardInterrupt):
-        train_mod.train(train_mod.TrainArgs(episodes=8, checkpoint_every=4, out=out, progress=False,
+        train_mod.train(train_mod.TrainArgs(episodes=8, checkpoint_every=4, out=out, progress=False, recipe="paper",
                                             overrides={"pile.variants": 2}, eval_every=5, eval_episodes=1))
     state = json.loads((out / "checkpoint" / "state.json").read_text())
     assert state["episodes_done"] == 4

@@ -1,4 +1,5 @@
-"""``autoscoop train``: train the paper's DDPG controller (or TD3, SAC, PPO) into a run directory."""
+"""``autoscoop train``: train a scooping controller (DDPG, the paper's, or TD3, SAC, PPO) from a recipe into a
+run directory; plain ``autoscoop train`` runs the shipped policy's recipe, ``--recipe paper`` the paper's."""
 
 from __future__ import annotations
 
@@ -16,6 +17,7 @@ from autoscoop.commands.options import (
     add_trust_option,
 )
 from autoscoop.core.config import overrides_from_yaml, parse_set_args
+from autoscoop.training.recipes import RECIPES, SHIPPED_RECIPE, recipes_help
 
 if TYPE_CHECKING:
     from autoscoop.evaluation.selection import Ranked
@@ -23,7 +25,7 @@ if TYPE_CHECKING:
 
 DEFAULT_EPISODES = 800
 """training episodes of a new run when ``--episodes`` is not given and its recipe names none (the paper's)."""
-DEFAULTS = {"algo": "ddpg", "recipe": "paper", "seed": 0, "n_envs": 1, "checkpoint_every": 50, "eval_every": 50, "eval_episodes": 10}
+DEFAULTS = {"algo": "ddpg", "recipe": SHIPPED_RECIPE, "seed": 0, "n_envs": 1, "checkpoint_every": 50, "eval_every": 50, "eval_episodes": 10}
 """a new run's settings where the options are not given (episodes: :data:`DEFAULT_EPISODES`). The options
 default to ``None`` so that ``--resume`` can tell what was given."""
 RECORDED = {"algo": "--algo", "recipe": "--recipe", "seed": "--seed", "n_envs": "--n-envs", "checkpoint_every": "--checkpoint-every",
@@ -39,13 +41,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     parser = subparsers.add_parser("train", help="train a controller", description=__doc__)
     parser.add_argument("--algo", choices=["ddpg", "td3", "sac", "ppo"],
                         help="algorithm (default ddpg, the paper's); settings in autoscoop/training/hyperparams/ALGO.yaml")
-    parser.add_argument("--recipe", choices=["paper", "robot", "robot_level", "robot_smooth"],
-                        help="paper (default): the paper's DDPG in its world, 800 episodes; robot: the randomised "
-                             "robot world with scripted demonstrations (the default shipped before); robot_level: "
-                             "robot with the state in the level frame (sensor.level_with_imu), 5000 episodes; "
-                             "robot_smooth: the shipped default's, robot_level with reward.distance_scale_m 0.3 "
-                             "and reward.c_action_change 1 (autoscoop/training/recipes/NAME.yaml, laid over the "
-                             "algorithm's YAML)")
+    parser.add_argument("--recipe", choices=RECIPES,
+                        help=f"{recipes_help()} (autoscoop/training/recipes/NAME.yaml, laid over the algorithm's "
+                             "YAML)".replace("%", "%%"))
     add_episodes_option(parser, default=None, what=f"training episodes (default: the recipe's, else "
                         f"{DEFAULT_EPISODES} as in the paper; not with --resume: a resumed run keeps its recorded count)")
     add_seed_option(parser, default=None, what="random seed", shown_default=DEFAULTS["seed"])

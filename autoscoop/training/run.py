@@ -28,7 +28,7 @@ from __future__ import annotations
 import sys
 import time
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from functools import partial
 from pathlib import Path
 from typing import Any
@@ -59,7 +59,11 @@ from autoscoop.training.checkpoints import (
 )
 from autoscoop.training.factories import make_noise, make_policy, make_training_env, make_vec_env
 from autoscoop.training.learning_curve import plot_learning_curve
+from autoscoop.training.recipes import SHIPPED_RECIPE
 from autoscoop.training.settings import config_at, curriculum_stages, load_recipe, with_hyper_overrides
+
+DEFAULT_EPISODES = 800
+"""training episodes of a run whose recipe and arguments name no count (the paper's)."""
 
 
 @dataclass
@@ -68,8 +72,8 @@ class TrainArgs:
 
     algo: str = "ddpg"
     """ddpg (the paper's), td3, sac or ppo; settings from autoscoop/training/hyperparams/ALGO.yaml."""
-    episodes: int = 800
-    """training episodes (the paper: 800)."""
+    episodes: int | None = None
+    """training episodes; ``None``: the recipe's ``episodes`` (the paper's: 800)."""
     seed: int = 0
     """seed of the networks, the noise and the environments."""
     n_envs: int = 1
@@ -96,8 +100,9 @@ class TrainArgs:
     demo_episodes: int | None = None
     """scripted scoops put in the replay buffer before learning (off-policy algorithms only);
     ``None``: the recipe or the algorithm's YAML says (``demo_episodes``, 0 if absent)."""
-    recipe: str = "paper"
-    """``paper``, ``robot`` or ``robot_level``: a named recipe laid over the algorithm's YAML (autoscoop/training/recipes/)."""
+    recipe: str = SHIPPED_RECIPE
+    """a recipe of :data:`autoscoop.training.recipes.RECIPES`, laid over the algorithm's YAML
+    (autoscoop/training/recipes/NAME.yaml); default the shipped policy's, ``paper`` for the paper's."""
     on_evaluation: Callable[[Evaluation], None] | None = None
     """called after each periodic evaluation, its files written (``autoscoop sweep`` reports it to Ray Tune);
     not recorded in the run directory."""
@@ -118,6 +123,8 @@ def _default_run_dir(args: TrainArgs) -> Path:
 def train(args: TrainArgs) -> Path:
     """Train from scratch into a new run directory; return it."""
     spec = with_hyper_overrides(load_recipe(args.algo, args.recipe), args.hyper)
+    if args.episodes is None:
+        args = replace(args, episodes=int(spec.get("episodes", DEFAULT_EPISODES)))
     demos = int(spec.get("demo_episodes", 0)) if args.demo_episodes is None else args.demo_episodes
     if demos and ALGORITHMS[args.algo] is PPO:
         raise ValueError("--demo-episodes needs an off-policy algorithm (ddpg, td3, sac); ppo has no replay buffer")

@@ -4,48 +4,32 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
-from importlib import resources
 from typing import Any
 
 import yaml
 
 from autoscoop.agents.algorithms import ALGORITHMS
 from autoscoop.core.config import ScoopConfig
+from autoscoop.training.recipes import SHIPPED_RECIPE, algorithm_yaml, check_recipe, lay_over, recipe_overlay
 
 
 def load_hyperparams(algo: str) -> dict[str, Any]:
     """The algorithm's YAML from the package (``autoscoop/training/hyperparams/ALGO.yaml``)."""
     if algo not in ALGORITHMS:
         raise ValueError(f"--algo {algo!r} is not offered; choose one of {sorted(ALGORITHMS)}")
-    text = (resources.files("autoscoop") / "training" / "hyperparams" / f"{algo}.yaml").read_text()
-    return yaml.safe_load(text)
+    return algorithm_yaml(algo)
 
 
-RECIPES = ("paper", "robot", "robot_level", "robot_smooth")
-"""Named recipes (``autoscoop/training/recipes/NAME.yaml``): ``paper`` (the paper's DDPG in its world, 800
-episodes), ``robot`` (the ``robot`` randomised world, scripted demonstrations; the ``default`` shipped before),
-``robot_level`` (``robot`` with the state in the level frame, ``sensor.level_with_imu``, and 5000 episodes) and
-``robot_smooth`` (the shipped ``default``'s: ``robot_level`` with a sharper progress term and a cost on
-flipping the commands)."""
-
-
-def load_recipe(algo: str, recipe: str = "paper") -> dict[str, Any]:
-    """The algorithm's YAML with a recipe laid over it: the keys of the recipe's sections (``env``,
-    ``hyperparams``, ``noise``, ``schedule``) are laid over the algorithm's, its other top-level keys
-    (``episodes``, ``demo_episodes``, ``curriculum``) set.
+def load_recipe(algo: str, recipe: str = SHIPPED_RECIPE) -> dict[str, Any]:
+    """The algorithm's YAML with a recipe (:mod:`autoscoop.training.recipes`, its bases included) laid over it:
+    the keys of the recipe's sections (``env``, ``hyperparams``, ``noise``, ``schedule``) are laid over the
+    algorithm's, its other top-level keys (``episodes``, ``demo_episodes``, ``curriculum``) set.
 
     Raises:
         ValueError: an unknown algorithm or recipe, naming the ones offered.
     """
-    if recipe not in RECIPES:
-        raise ValueError(f"--recipe {recipe!r} is not offered; choose one of {list(RECIPES)}")
-    spec = load_hyperparams(algo)
-    text = (resources.files("autoscoop") / "training" / "recipes" / f"{recipe}.yaml").read_text()
-    overlay = yaml.safe_load(text) or {}
-    merged = {**spec, **overlay}
-    for name, section in overlay.items():
-        if isinstance(section, dict) and isinstance(spec.get(name), dict):
-            merged[name] = {**spec[name], **section}
+    check_recipe(recipe)
+    merged = lay_over(load_hyperparams(algo), recipe_overlay(recipe))
     return {**merged, "env": merged.get("env") or {}, "recipe": recipe}
 
 

@@ -4,7 +4,7 @@ The file names config keys (``--set`` keys, under ``config``) and algorithm keys
 ``hyper``), each with a fixed value or one of Ray Tune's distributions, and the seeds::
 
     algo: ddpg                 # the algorithm (its YAML is autoscoop/training/hyperparams/ALGO.yaml)
-    recipe: paper              # laid over it (autoscoop/training/recipes/NAME.yaml)
+    recipe: paper              # laid over it (autoscoop/training/recipes/NAME.yaml; default paper)
     seeds: [0, 1]              # a grid: every setting is trained with each seed
     config:
       pile.variants: 2                              # fixed: every trial
@@ -33,6 +33,7 @@ from typing import Annotated, Any, Literal
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 
 from autoscoop.core.config import ConfigError, ConfigModel, ScoopConfig, read_yaml_file, setting
+from autoscoop.training.recipes import PAPER_RECIPE, RECIPES
 from autoscoop.training.settings import load_recipe, with_hyper_overrides
 
 DISTRIBUTIONS = ("choice", "uniform", "loguniform", "grid")
@@ -143,8 +144,9 @@ class SweepSpace(BaseModel):
 
     algo: Literal["ddpg", "td3", "sac", "ppo"] = "ddpg"
     """the algorithm; ``hyper`` keys are those of its YAML."""
-    recipe: Literal["paper", "robot", "robot_level", "robot_smooth"] = "paper"
-    """the recipe laid over the algorithm's YAML (as ``autoscoop train --recipe``)."""
+    recipe: Literal[RECIPES] = PAPER_RECIPE  # type: ignore[valid-type]  # the registry's names
+    """the recipe laid over the algorithm's YAML (as ``autoscoop train --recipe``; one of
+    :data:`autoscoop.training.recipes.RECIPES`); a space without one trains the paper's, quick to try."""
     seeds: tuple[Seed, ...] = Field((0,), min_length=1)
     """training seeds, a grid: every trial set is trained with each."""
     draw_seed: Seed = 0
