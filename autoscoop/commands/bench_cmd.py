@@ -13,8 +13,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from autoscoop.commands import check_output_file, config_from_args, write_json
-from autoscoop.commands.options import NON_NEGATIVE, POSITIVE, add_config_args, add_json_option, add_seed_option
+from autoscoop.commands import check_output_file, config_from_args, options, write_json
 from autoscoop.evaluation.bench import run_bench, run_vec_bench
 
 
@@ -25,26 +24,26 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                         help="'payload': the payload mode (autoscoop.evaluation.payload_bench); without it, speed "
                              "or (with --n-envs) scaling")
     size = parser.add_argument_group("how much to measure (the modes that use each say so)")
-    size.add_argument("--episodes", type=NON_NEGATIVE, default=10, metavar="N",
+    size.add_argument("--episodes", type=options.NON_NEGATIVE, default=10, metavar="N",
                        help="speed: scripted episodes per repeat, 1 or more; payload: moving scoops after the static "
                             "holds, 0 or more (default 10)")
-    size.add_argument("--repeats", type=POSITIVE, default=3, metavar="N",
+    size.add_argument("--repeats", type=options.POSITIVE, default=3, metavar="N",
                        help="speed and scaling: timed repeats, the median is reported (default 3)")
     scaling = parser.add_argument_group("scaling (autoscoop bench --n-envs N)")
-    scaling.add_argument("--n-envs", type=POSITIVE, metavar="N",
+    scaling.add_argument("--n-envs", type=options.POSITIVE, metavar="N",
                          help="measure aggregate env steps/s of N environments stepped together (SubprocVecEnv, as "
                               "`train --n-envs N`) against 1, and the ratio, instead of the one-core figures")
-    scaling.add_argument("--steps", type=POSITIVE, default=2000, metavar="N",
+    scaling.add_argument("--steps", type=options.POSITIVE, default=2000, metavar="N",
                          help="steps each environment takes per repeat (default 2000)")
     scaling.add_argument("--actions", choices=["random", "fixed"], default="random",
                          help="uniform random actions (default) or the fixed middle action")
-    add_seed_option(scaling, what="seed of the environments and actions")
+    options.add_seed_option(scaling, what="seed of the environments and actions")
     payload = parser.add_argument_group("payload (autoscoop bench payload)")
     payload.add_argument("--records", type=Path, metavar="DIR", help="write the static holds as records to this folder")
     payload.add_argument("--calibration", type=Path, metavar="FILE.yaml",
                          help="the estimators' calibration YAML (default nominal)")
-    add_json_option(parser, "the results")
-    add_config_args(parser)
+    options.add_json_option(parser, "the results")
+    options.add_config_args(parser)
     parser.set_defaults(func=run)
 
 

@@ -17,15 +17,7 @@ import time
 from pathlib import Path
 
 from autoscoop.agents.loading import load_policy
-from autoscoop.commands import check_output_dir, check_output_file, config_from_args, write_json
-from autoscoop.commands.options import (
-    NumberIn,
-    add_config_args,
-    add_episodes_option,
-    add_out_option,
-    add_seed_option,
-    add_trust_option,
-)
+from autoscoop.commands import check_output_dir, check_output_file, config_from_args, options, write_json
 from autoscoop.core.config import PILE_ANGLE_RANGE_DEG
 from autoscoop.evaluation.evaluate import evaluate, format_table, summarize
 
@@ -39,15 +31,15 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                                    description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--policies", nargs="+", default=["default", "heuristic"],
                         help="controllers to evaluate (default: default heuristic)")
-    parser.add_argument("--angles", nargs="+", type=NumberIn(*PILE_ANGLE_RANGE_DEG, "deg"), default=list(PILE_ANGLES_DEG),
+    parser.add_argument("--angles", nargs="+", type=options.NumberIn(*PILE_ANGLE_RANGE_DEG, "deg"), default=list(PILE_ANGLES_DEG),
                         help="pile angles, degrees (default 25 32 40)")
-    add_episodes_option(parser, default=100, what="episodes per controller and pile")
-    add_seed_option(parser)
+    options.add_episodes_option(parser, default=100, what="episodes per controller and pile")
+    options.add_seed_option(parser)
     parser.add_argument("--manual", nargs="*", type=Path, default=None,
                         help=f"folders or files of manual episode records (default {DEFAULT_MANUAL} if it exists)")
-    add_out_option(parser, Path("out/compare"))
-    add_trust_option(parser)
-    add_config_args(parser)
+    options.add_out_option(parser, Path("out/compare"))
+    options.add_trust_option(parser)
+    options.add_config_args(parser)
     parser.set_defaults(func=run)
 
 

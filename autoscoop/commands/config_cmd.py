@@ -5,15 +5,14 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from autoscoop.commands import config_from_args
-from autoscoop.commands.options import add_config_args
+from autoscoop.commands import config_from_args, options
 from autoscoop.core.config import save_yaml
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
     parser = subparsers.add_parser("config", help="show or write the configuration", description=__doc__)
     parser.add_argument("--write", type=Path, help="write the (overridden) config to this YAML file")
-    add_config_args(parser)
+    options.add_config_args(parser)
     parser.set_defaults(func=run)
 
 

@@ -13,15 +13,7 @@ import time
 from pathlib import Path
 
 from autoscoop.agents.loading import load_policy
-from autoscoop.commands import check_output_dir, check_output_file, config_from_args, write_json
-from autoscoop.commands.options import (
-    NumberIn,
-    add_config_args,
-    add_episodes_option,
-    add_out_option,
-    add_policy_option,
-    add_seed_option,
-)
+from autoscoop.commands import check_output_dir, check_output_file, config_from_args, options, write_json
 from autoscoop.core.config import ScoopConfig
 from autoscoop.core.policy import Policy
 from autoscoop.evaluation.evaluate import evaluate, format_table, summarize
@@ -32,14 +24,14 @@ DEFAULT_OUT = Path("out/demo")
 def register(subparsers: argparse._SubParsersAction) -> None:
     parser = subparsers.add_parser("demo", help="watch the shipped controller scoop: metrics, video, figures",
                                    description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    add_policy_option(parser)
-    add_episodes_option(parser, default=10, what="episodes for the metrics table")
-    add_seed_option(parser, what="seed of the first episode, the one filmed")
-    add_out_option(parser, DEFAULT_OUT)
-    parser.add_argument("--fps", type=NumberIn(8.0, 1000.0), default=16.0,
+    options.add_policy_option(parser)
+    options.add_episodes_option(parser, default=10, what="episodes for the metrics table")
+    options.add_seed_option(parser, what="seed of the first episode, the one filmed")
+    options.add_out_option(parser, DEFAULT_OUT)
+    parser.add_argument("--fps", type=options.NumberIn(8.0, 1000.0), default=16.0,
                         help="video frames per simulated second, 8 or more (default 16)")
     parser.add_argument("--no-video", action="store_true", help="skip the video (figures and table only)")
-    add_config_args(parser)
+    options.add_config_args(parser)
     parser.set_defaults(func=run)
 
 

@@ -6,15 +6,7 @@ import argparse
 from pathlib import Path
 
 from autoscoop.agents.loading import load_policy
-from autoscoop.commands import check_output_file, config_from_args, prepare_records_dir, write_json
-from autoscoop.commands.options import (
-    add_config_args,
-    add_episodes_option,
-    add_json_option,
-    add_policy_option,
-    add_seed_option,
-    add_trust_option,
-)
+from autoscoop.commands import check_output_file, config_from_args, options, prepare_records_dir, write_json
 from autoscoop.core.policy import config_for_policy
 from autoscoop.evaluation.evaluate import evaluate, format_table, summarize
 
@@ -22,17 +14,17 @@ from autoscoop.evaluation.evaluate import evaluate, format_table, summarize
 def register(subparsers: argparse._SubParsersAction) -> None:
     parser = subparsers.add_parser("eval", help="evaluate a controller over N episodes",
                                    description=__doc__)
-    add_policy_option(parser, default="heuristic")
-    add_episodes_option(parser, default=100)
-    add_seed_option(parser)
-    add_json_option(parser, "the summary (and each episode)")
+    options.add_policy_option(parser, default="heuristic")
+    options.add_episodes_option(parser, default=100)
+    options.add_seed_option(parser)
+    options.add_json_option(parser, "the summary (and each episode)")
     parser.add_argument("--records", type=Path, metavar="DIR",
                         help="save each episode's record here (redraw figures with `autoscoop report DIR`); "
                              "the folder must be new or empty, unless --overwrite")
     parser.add_argument("--overwrite", action="store_true",
                         help="with --records: first remove the folder's episode_*.npz records")
-    add_trust_option(parser)
-    add_config_args(parser)
+    options.add_trust_option(parser)
+    options.add_config_args(parser)
     parser.set_defaults(func=run)
 
 

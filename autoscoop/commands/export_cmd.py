@@ -12,27 +12,20 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from autoscoop.commands import config_from_args, write_json
-from autoscoop.commands.options import (
-    NON_NEGATIVE,
-    add_config_args,
-    add_json_option,
-    add_policy_option,
-    add_trust_option,
-)
+from autoscoop.commands import config_from_args, options, write_json
 from autoscoop.core.policy import state_frame_of
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
     parser = subparsers.add_parser("export", help="export a policy's actor to ONNX (runs with onnxruntime alone)",
                                    description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    add_policy_option(parser, accepts="default, a .safetensors file or a run directory")
+    options.add_policy_option(parser, accepts="default, a .safetensors file or a run directory")
     parser.add_argument("--onnx", type=onnx_path, required=True, metavar="OUT.onnx", help="the file to write")
-    parser.add_argument("--check-states", type=NON_NEGATIVE, default=10_000, metavar="N",
+    parser.add_argument("--check-states", type=options.NON_NEGATIVE, default=10_000, metavar="N",
                         help="random states for the parity check (default 10000; 0 skips it)")
-    add_json_option(parser, "the parity check and timings")
-    add_trust_option(parser, "allow a pickled SB3 zip as the policy")
-    add_config_args(parser)
+    options.add_json_option(parser, "the parity check and timings")
+    options.add_trust_option(parser, "allow a pickled SB3 zip as the policy")
+    options.add_config_args(parser)
     parser.set_defaults(func=run)
 
 

@@ -15,7 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
-from autoscoop.commands.options import NumberIn
+from autoscoop.commands import options
 from autoscoop.core.payload import PayloadCalibration, fit_calibration
 from autoscoop.envs.records import load_record
 
@@ -34,7 +34,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                            help="calibration YAML to write (default payload_calibration.yaml)")
     calibrate.add_argument("--prior", type=Path, help="calibration to start from (its gravity and the lever "
                                                       "arm's unobservable direction are kept)")
-    calibrate.add_argument("--max-joint-step", type=NumberIn(0.0, 1.0, "rad"), default=STATIC_JOINT_STEP_RAD, metavar="RAD",
+    calibrate.add_argument("--max-joint-step", type=options.NumberIn(0.0, 1.0, "rad"), default=STATIC_JOINT_STEP_RAD, metavar="RAD",
                            help="in records not marked static: use steps whose joints moved less than this "
                                 f"since the previous step (default {STATIC_JOINT_STEP_RAD} rad)")
     calibrate.set_defaults(func=run_calibrate)

@@ -12,14 +12,14 @@ import argparse
 import shlex
 from pathlib import Path
 
-from autoscoop.commands.options import add_out_option
+from autoscoop.commands import options
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
     parser = subparsers.add_parser("report", help="redraw tables and figures from episode records",
                                    description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("records", nargs="+", type=Path, help="record files or folders of them")
-    add_out_option(parser, Path("out/report"))
+    options.add_out_option(parser, Path("out/report"))
     parser.add_argument("--title", default="autoscoop report", help="heading of report.md")
     parser.set_defaults(func=run)
 

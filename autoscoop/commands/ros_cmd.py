@@ -12,18 +12,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from autoscoop.commands import check_output_file, config_from_args, write_json
-from autoscoop.commands.options import (
-    POSITIVE_SECONDS,
-    NumberIn,
-    add_config_args,
-    add_episodes_option,
-    add_json_option,
-    add_policy_option,
-    add_seed_option,
-    add_set_option,
-    add_trust_option,
-)
+from autoscoop.commands import check_output_file, config_from_args, options, write_json
 from autoscoop.core.config import ConfigError, ScoopConfig, parse_set_args
 
 
@@ -34,12 +23,12 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
     controller = nodes.add_parser("controller", help="run a policy on the robot's topics, with watchdog and limits",
                                   description=_CONTROLLER_DOC, formatter_class=argparse.RawDescriptionHelpFormatter)
-    add_policy_option(controller, accepts="default (shipped), heuristic, a .onnx file (onnxruntime only) or a policy file")
+    options.add_policy_option(controller, accepts="default (shipped), heuristic, a .onnx file (onnxruntime only) or a policy file")
     controller.add_argument("--config", type=Path, help="the robot's YAML: limits, timeouts, calibration, topics")
     controller.add_argument("--record", type=Path, metavar="DIR", help="write one episode record per scoop here")
-    add_set_option(controller, "scene/task config the policy was made for, e.g. --set pile.angle_deg=28 (labels "
+    options.add_set_option(controller, "scene/task config the policy was made for, e.g. --set pile.angle_deg=28 (labels "
                                "the records; the heuristic aims at reward.terminal_*)")
-    add_trust_option(controller, "allow a pickled SB3 zip as the policy")
+    options.add_trust_option(controller, "allow a pickled SB3 zip as the policy")
     controller.add_argument("--check", action="store_true",
                             help="check the configuration and the policy, print them, and exit without ROS")
     controller.add_argument("remap", nargs="*", type=ros_remap, metavar="NAME:=NEW",
@@ -48,18 +37,18 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
     sim = nodes.add_parser("sim", help="the MuJoCo scene behind the robot's topics (like Gazebo)",
                            description=_SIM_DOC, formatter_class=argparse.RawDescriptionHelpFormatter)
-    add_episodes_option(sim, default=0, what="episodes to run, then exit (0: until stopped)", minimum=0)
-    add_seed_option(sim, what="seed of the first episode (as in autoscoop eval)")
-    add_json_option(sim, "the summary (as autoscoop eval does)")
+    options.add_episodes_option(sim, default=0, what="episodes to run, then exit (0: until stopped)", minimum=0)
+    options.add_seed_option(sim, what="seed of the first episode (as in autoscoop eval)")
+    options.add_json_option(sim, "the summary (as autoscoop eval does)")
     for flag, key, unit, what in LINK_OPTIONS:
-        sim.add_argument(flag, type=NumberIn(0.0, None, unit), default=None, metavar=unit.upper().replace("/", "_").replace("*", "_"),
+        sim.add_argument(flag, type=options.NumberIn(0.0, None, unit), default=None, metavar=unit.upper().replace("/", "_").replace("*", "_"),
                          help=f"{what}, {unit}: the config key {key} (same as --set {key}=...; default 0)")
     sim.add_argument("--robot-config", type=Path,
                      help="the robot's YAML: topic and joint names, and potentiometer calibration (raw readings)")
     sim.add_argument("--label", help="policy name for the summary (default: the controller's ~policy parameter)")
-    sim.add_argument("--wait-s", type=POSITIVE_SECONDS, default=60.0,
+    sim.add_argument("--wait-s", type=options.POSITIVE_SECONDS, default=60.0,
                      help="give up when no controller appears within this long, s (default 60)")
-    add_config_args(sim)
+    options.add_config_args(sim)
     sim.add_argument("remap", nargs="*", type=ros_remap, metavar="NAME:=NEW", help="ROS remappings")
     sim.set_defaults(func=run_sim)
     parser.set_defaults(func=lambda args: parser.print_help() or 2)

@@ -8,17 +8,7 @@ import os
 import time
 
 from autoscoop.agents.loading import load_policy
-from autoscoop.commands import check_output_dir, check_output_file, config_from_args, write_json
-from autoscoop.commands.options import (
-    add_config_args,
-    add_episodes_option,
-    add_json_option,
-    add_out_option,
-    add_policy_option,
-    add_seed_option,
-    add_trust_option,
-    add_workers_option,
-)
+from autoscoop.commands import check_output_dir, check_output_file, config_from_args, options, write_json
 from autoscoop.core.version import __version__
 from autoscoop.evaluation.stress import case_names, run_stress, select_cases
 from autoscoop.report.stress import stress_table, verdict, write_stress_report
@@ -27,16 +17,16 @@ from autoscoop.report.stress import stress_table, verdict, write_stress_report
 def register(subparsers: argparse._SubParsersAction) -> None:
     parser = subparsers.add_parser("stress", help="run a controller over the stress cases and check the thresholds",
                                    description=__doc__)
-    add_policy_option(parser)
-    add_episodes_option(parser, default=100, what="episodes per case")
-    add_seed_option(parser, what="seed of the first episode; each case runs seeds SEED..SEED+EPISODES-1")
+    options.add_policy_option(parser)
+    options.add_episodes_option(parser, default=100, what="episodes per case")
+    options.add_seed_option(parser, what="seed of the first episode; each case runs seeds SEED..SEED+EPISODES-1")
     parser.add_argument("--cases", default=None, metavar="NAME,NAME",
                         help=f"which cases (default: all): {', '.join(case_names())}")
-    add_workers_option(parser)
-    add_json_option(parser, "the rows (statistics, thresholds, pass flags, each episode)", required=True)
-    add_out_option(parser, None, "folder for stress.md (the table) and stress.png (the heat map)", required=True)
-    add_trust_option(parser)
-    add_config_args(parser)
+    options.add_workers_option(parser)
+    options.add_json_option(parser, "the rows (statistics, thresholds, pass flags, each episode)", required=True)
+    options.add_out_option(parser, None, "folder for stress.md (the table) and stress.png (the heat map)", required=True)
+    options.add_trust_option(parser)
+    options.add_config_args(parser)
     parser.set_defaults(func=run)
 
 

@@ -16,8 +16,7 @@ import os
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from autoscoop.commands import check_output_dir, check_output_file, write_json
-from autoscoop.commands.options import POSITIVE, add_episodes_option, add_json_option, add_out_option
+from autoscoop.commands import check_output_dir, check_output_file, options, write_json
 from autoscoop.core.version import __version__
 
 if TYPE_CHECKING:
@@ -34,19 +33,19 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument("--space", type=Path, metavar="SPACE.yaml",
                         help="the search space: config keys (--set keys), algorithm keys (--hyper keys), seeds "
                              "(docs/sweep.example.yaml); with --resume optional, and then it must be the recorded one")
-    parser.add_argument("--trials", type=POSITIVE, metavar="N",
+    parser.add_argument("--trials", type=options.POSITIVE, metavar="N",
                         help="trials in all: a multiple of the space's grid (seeds x grid lists)")
-    add_episodes_option(parser, default=None, what="training episodes per trial")
-    add_out_option(parser, None, "the sweep's folder (trials' run directories, Tune's state, the report); "
+    options.add_episodes_option(parser, default=None, what="training episodes per trial")
+    options.add_out_option(parser, None, "the sweep's folder (trials' run directories, Tune's state, the report); "
                                  "on a cluster it must be shared storage, at the same path on every node", required=True)
     parser.add_argument("--address", metavar="HOST:PORT",
                         help="run on this Ray cluster (`ray start --head` prints it); default: Ray embedded here")
     parser.add_argument("--resume", action="store_true",
                         help="continue the interrupted sweep in --out; finished trials are not trained again")
-    add_json_option(parser, "the table and the sweep's facts, too,")
-    parser.add_argument("--num-cpus", type=POSITIVE, metavar="N",
+    options.add_json_option(parser, "the table and the sweep's facts, too,")
+    parser.add_argument("--num-cpus", type=options.POSITIVE, metavar="N",
                         help="CPUs embedded Ray may use, one per trial (default: all of this machine's)")
-    parser.add_argument("--max-concurrent", type=POSITIVE, metavar="N",
+    parser.add_argument("--max-concurrent", type=options.POSITIVE, metavar="N",
                         help="most trials at once (default: as many as the CPUs allow)")
     parser.set_defaults(func=run)
 

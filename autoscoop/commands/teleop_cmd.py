@@ -13,15 +13,7 @@ import argparse
 import os
 from pathlib import Path
 
-from autoscoop.commands import config_from_args
-from autoscoop.commands.options import (
-    POSITIVE_SECONDS,
-    NumberIn,
-    add_config_args,
-    add_episodes_option,
-    add_out_option,
-    add_seed_option,
-)
+from autoscoop.commands import config_from_args, options
 
 MANUAL_TIME_LIMIT_S = 20.0
 """Episode limit for people: the paper's manual cycles took 10 s on average, against 8 s for the controller's limit."""
@@ -30,14 +22,14 @@ MANUAL_TIME_LIMIT_S = 20.0
 def register(subparsers: argparse._SubParsersAction) -> None:
     parser = subparsers.add_parser("teleop", help="drive the loader with the keyboard and record the episodes",
                                    description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    add_out_option(parser, Path("out/manual"), "folder for the records")
-    add_episodes_option(parser, default=0, what="stop after this many episodes (0: until the window closes)", minimum=0)
-    add_seed_option(parser)
-    parser.add_argument("--speed", type=NumberIn(0.05, 4.0), default=1.0,
+    options.add_out_option(parser, Path("out/manual"), "folder for the records")
+    options.add_episodes_option(parser, default=0, what="stop after this many episodes (0: until the window closes)", minimum=0)
+    options.add_seed_option(parser)
+    parser.add_argument("--speed", type=options.NumberIn(0.05, 4.0), default=1.0,
                         help="simulated seconds per wall second, in [0.05, 4] (0.5: half speed)")
-    parser.add_argument("--time-limit", type=POSITIVE_SECONDS, default=MANUAL_TIME_LIMIT_S,
+    parser.add_argument("--time-limit", type=options.POSITIVE_SECONDS, default=MANUAL_TIME_LIMIT_S,
                         help=f"episode time limit, s (default {MANUAL_TIME_LIMIT_S:g}; the controllers get 8)")
-    add_config_args(parser)
+    options.add_config_args(parser)
     parser.set_defaults(func=run)
 
 

@@ -7,15 +7,7 @@ import argparse
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from autoscoop.commands.options import (
-    NON_NEGATIVE,
-    POSITIVE,
-    add_config_args,
-    add_episodes_option,
-    add_out_option,
-    add_seed_option,
-    add_trust_option,
-)
+from autoscoop.commands import options
 from autoscoop.core.config import overrides_from_yaml, parse_set_args
 from autoscoop.training.recipes import RECIPES, SHIPPED_RECIPE, recipes_help
 
@@ -44,30 +36,30 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument("--recipe", choices=RECIPES,
                         help=f"{recipes_help()} (autoscoop/training/recipes/NAME.yaml, laid over the algorithm's "
                              "YAML)".replace("%", "%%"))
-    add_episodes_option(parser, default=None, what=f"training episodes (default: the recipe's, else "
+    options.add_episodes_option(parser, default=None, what=f"training episodes (default: the recipe's, else "
                         f"{DEFAULT_EPISODES} as in the paper; not with --resume: a resumed run keeps its recorded count)")
-    add_seed_option(parser, default=None, what="random seed", shown_default=DEFAULTS["seed"])
-    parser.add_argument("--n-envs", type=POSITIVE, metavar="N", help="parallel simulators in subprocesses (default 1)")
-    parser.add_argument("--checkpoint-every", type=POSITIVE, metavar="N", help="episodes between checkpoints (default 50)")
-    parser.add_argument("--eval-every", type=NON_NEGATIVE, metavar="N",
+    options.add_seed_option(parser, default=None, what="random seed", shown_default=DEFAULTS["seed"])
+    parser.add_argument("--n-envs", type=options.POSITIVE, metavar="N", help="parallel simulators in subprocesses (default 1)")
+    parser.add_argument("--checkpoint-every", type=options.POSITIVE, metavar="N", help="episodes between checkpoints (default 50)")
+    parser.add_argument("--eval-every", type=options.NON_NEGATIVE, metavar="N",
                         help="episodes between evaluations of the deterministic policy; the best is kept "
                              "(0: keep the last; default 50)")
-    parser.add_argument("--eval-episodes", type=POSITIVE, metavar="N", help="episodes per evaluation (default 10)")
-    add_out_option(parser, None, "run directory (default runs/ALGO-sSEED-TIME)")
+    parser.add_argument("--eval-episodes", type=options.POSITIVE, metavar="N", help="episodes per evaluation (default 10)")
+    options.add_out_option(parser, None, "run directory (default runs/ALGO-sSEED-TIME)")
     parser.add_argument("--resume", type=Path, metavar="RUN_DIR",
                         help="continue an interrupted run with its recorded settings (--config, --set, --hyper, "
                              "--init, --out and settings other than the recorded ones are refused)")
     parser.add_argument("--init", type=Path, metavar="RUN_DIR",
                         help="fine-tune: start from the policy of this finished run (same --algo)")
-    add_trust_option(parser, "let --init load a policy.zip its run.json does not vouch for (zips run pickle)")
+    options.add_trust_option(parser, "let --init load a policy.zip its run.json does not vouch for (zips run pickle)")
     parser.add_argument("--hyper", action="append", default=[], metavar="SECTION.KEY=VALUE",
                         help="override a setting of the algorithm's YAML, e.g. hyperparams.learning_rate=3e-4 "
                              "or noise.sigma_start=0.05 (repeatable)")
-    parser.add_argument("--demo-episodes", type=NON_NEGATIVE, metavar="N",
+    parser.add_argument("--demo-episodes", type=options.NON_NEGATIVE, metavar="N",
                         help="put N scripted (heuristic) scoops in the replay buffer before learning "
                              "(off-policy algorithms; default: the algorithm's YAML, demo_episodes, 0 when it has none)")
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
-    add_config_args(parser)
+    options.add_config_args(parser)
     parser.set_defaults(func=run)
 
 
