@@ -188,7 +188,7 @@ def test_init_fine_tunes_from_a_finished_run_and_checks_what_it_loads(tmp_path):
                  "--hyper", "noise.sigma_start=0.05", "--hyper", "hyperparams.learning_rate=3e-4",
                  "--out", str(tuned), *FAST]) == 0
     info = json.loads((tuned / "run.json").read_text())
-    assert Path(info["init_from"]) == (source / "policy.zip").resolve()
+    assert Path(info["init_from"]) == (source / "policy.safetensors").resolve()  # the safe actor: no --trust
     evaluations = [int(r["episode"]) for r in csv.DictReader(open(tuned / "evaluations.csv"))]
     assert evaluations == [0, 2]  # the starting policy is evaluated first
     start = load_policy(str(tuned / "evaluated" / "episode_00000.safetensors"), ScoopConfig())
@@ -197,8 +197,8 @@ def test_init_fine_tunes_from_a_finished_run_and_checks_what_it_loads(tmp_path):
     np.testing.assert_allclose([start.act(s) for s in states], [original.act(s) for s in states], atol=1e-6)
     hyper = __import__("yaml").safe_load((tuned / "hyperparams.yaml").read_text())
     assert hyper["noise"]["sigma_start"] == 0.05 and hyper["hyperparams"]["learning_rate"] == 3e-4
-    # a zip its run no longer vouches for, another algorithm, an unknown setting: refused before training
-    with open(source / "policy.zip", "ab") as f:
+    # a changed actor file, another algorithm, an unknown setting: refused before training
+    with open(source / "policy.safetensors", "ab") as f:
         f.write(b"tampered")
     assert main(["train", "--init", str(source), "--episodes", "1", "--out", str(tmp_path / "a"), *FAST]) == 2
     assert main(["train", "--init", str(tuned), "--algo", "td3", "--episodes", "1", "--out", str(tmp_path / "b"),
@@ -208,12 +208,14 @@ def test_init_fine_tunes_from_a_finished_run_and_checks_what_it_loads(tmp_path):
 
 
 def test_ppo_trains_and_its_run_directory_loads(tmp_path):
-    """PPO's Gaussian policy has no paper actor: the run keeps it in its vouched-for zip."""
+    """PPO's Gaussian policy has no paper actor: the run keeps it in its zip, loaded only with trust."""
     out = tmp_path / "ppo"
     assert main(["train", "--algo", "ppo", "--episodes", "3", "--eval-every", "3", "--eval-episodes", "1",
                  "--out", str(out), *FAST]) == 0
     assert (out / "policy.zip").is_file() and not (out / "policy.safetensors").exists()
-    policy = load_policy(str(out), ScoopConfig())
+    with pytest.raises(PolicyError, match="--trust"):
+        load_policy(str(out), ScoopConfig())
+    policy = load_policy(str(out), ScoopConfig(), trust=True)
     assert policy.act(np.zeros(12, dtype=np.float32)).shape == (3,)
 
 

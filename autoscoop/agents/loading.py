@@ -2,13 +2,13 @@
 
 from __future__ import annotations
 
-import json
 from importlib import resources
 from pathlib import Path
 
 from autoscoop.agents.heuristic import HeuristicParams, HeuristicScooper
 from autoscoop.core.config import ScoopConfig
 from autoscoop.core.policy import Policy
+from autoscoop.core.safe_files import UnsafeInputError, quote, read_json
 from autoscoop.core.state import CommandLimits
 
 DEFAULT_POLICY = "default"
@@ -37,12 +37,13 @@ def load_policy(spec: str, config: ScoopConfig, trust: bool = False) -> Policy:
 
     Args:
         spec: ``heuristic`` (scripted baseline), ``default`` (the shipped policy), a ``.safetensors``
-            actor file (safe), a run directory (its safe actor file), an ``.onnx`` file, or an SB3 ``.zip``.
+            actor file (safe), a run directory (its safe actor file; its ``policy.zip`` only where it has no
+            safe one, and only with ``trust``), an ``.onnx`` file, or an SB3 ``.zip`` (only with ``trust``).
         config: the scene it will run in.
-        trust: allow an SB3 zip (which unpickles) that no autoscoop run directory vouches for.
+        trust: allow an SB3 zip, which unpickles (runs code) when loaded.
 
     Raises:
-        PolicyError: if ``spec`` names nothing loadable, or an untrusted zip without ``trust``.
+        PolicyError: if ``spec`` names nothing loadable, or a zip without ``trust``.
     """
     if spec == "heuristic":
         return heuristic_for(config)
@@ -58,13 +59,11 @@ def load_policy(spec: str, config: ScoopConfig, trust: bool = False) -> Policy:
             raise PolicyError("the shipped policy is missing from this installation (autoscoop/policies/default.*)")
         return ActorPolicy(path, name=DEFAULT_POLICY)
     path = Path(spec)
-    if path.is_dir() and (path / "policy.safetensors").is_file():
-        path = path / "policy.safetensors"
-    elif path.is_dir() and (path / "policy.zip").is_file():  # PPO: no safe actor file; the run vouches for its zip
-        path = path / "policy.zip"
+    if path.is_dir():
+        path = _policy_in_run_dir(path)
     if not path.exists():
         raise PolicyError(f"policy {spec!r} not found; use heuristic, default, a .safetensors/.onnx file, "
-                          "a run directory, or an SB3 .zip")
+                          "a run directory, or an SB3 .zip (with --trust)")
     try:
         if path.suffix in (".safetensors", ".json"):
             return ActorPolicy(path)
@@ -76,21 +75,32 @@ def load_policy(spec: str, config: ScoopConfig, trust: bool = False) -> Policy:
             return _load_sb3_zip(path, trust)
     except PolicyFileError as error:
         raise PolicyError(str(error)) from error
+    except ValueError as error:  # the ONNX runner's checks
+        raise PolicyError(str(error)) from None
     raise PolicyError(f"policy file {path} has an unknown type; use .safetensors, .onnx or .zip")
 
 
-def zip_is_vouched_for(path: Path) -> bool:
-    """Whether an autoscoop run directory records this zip's SHA-256 (``run.json`` beside it)."""
-    from autoscoop.agents.policy_files import sha256_of  # noqa: PLC0415
+def _policy_in_run_dir(run_dir: Path) -> Path:
+    """A run directory's policy: its safe actor file, else its SB3 zip (loaded only with ``--trust``)."""
+    for name in ("policy.safetensors", "policy.zip"):
+        if (run_dir / name).is_file():
+            return run_dir / name
+    raise PolicyError(f"policy {run_dir}: a folder without policy.safetensors or policy.zip; give a training run "
+                      "directory or a policy file")
 
-    run_json = path.parent / "run.json"
-    if not run_json.is_file():
-        return False
-    try:
-        recorded = json.loads(run_json.read_text()).get("policy_zip_sha256")
-    except json.JSONDecodeError:
-        return False
-    return recorded is not None and recorded == sha256_of(path)
+
+def refuse_untrusted_zip(path: Path, trust: bool, option: str = "--policy") -> None:
+    """Refuse an SB3 zip unless the user vouched for it with ``--trust``: loading one runs pickle.
+
+    Nothing inside a folder vouches for a file in it (whoever can write the zip can write ``run.json``).
+
+    Raises:
+        PolicyError: ``trust`` is false.
+    """
+    if not trust:
+        raise PolicyError(f"{option} {path}: a Stable-Baselines3 zip runs pickle when loaded, so it is loaded only "
+                          "with --trust. Load the run's policy.safetensors instead (a run directory gives it when "
+                          "it has one), or pass --trust if you trust where the zip came from.")
 
 
 class SB3Policy:
@@ -108,19 +118,22 @@ class SB3Policy:
 
 
 def _load_sb3_zip(path: Path, trust: bool) -> Policy:
-    if not trust and not zip_is_vouched_for(path):
-        raise PolicyError(f"{path} is a Stable-Baselines3 zip, which runs pickle when loaded, and no autoscoop run "
-                          "directory vouches for it (run.json with its SHA-256). Load its policy.safetensors "
-                          "instead, or pass --trust if you trust where it came from.")
+    refuse_untrusted_zip(path, trust)
     from autoscoop.agents.algorithms import ALGORITHMS  # noqa: PLC0415 - torch
 
-    algo = None
-    run_json = path.parent / "run.json"
-    if run_json.is_file():
-        algo = json.loads(run_json.read_text()).get("algo")
-    for name, cls in ALGORITHMS.items() if algo is None else [(algo, ALGORITHMS[algo])]:
+    tried = []
+    for name in sorted(ALGORITHMS, key=lambda algo: algo != _recorded_algo(path)):  # its run's algorithm first
         try:
-            return SB3Policy(cls.load(path, device="cpu"), name=f"{name}:{path.name}")
-        except (KeyError, ValueError, RuntimeError):
-            continue
-    raise PolicyError(f"{path}: not a model of any of {sorted(ALGORITHMS)}")
+            return SB3Policy(ALGORITHMS[name].load(path, device="cpu"), name=f"{name}:{path.name}")
+        except Exception as error:  # a trusted zip of another algorithm, or broken, fails anywhere in SB3 or pickle
+            tried.append(f"{name}: {quote(str(error), 80)}")
+    raise PolicyError(f"{path}: not a Stable-Baselines3 model of any of {sorted(ALGORITHMS)} ({'; '.join(tried)})")
+
+
+def _recorded_algo(zip_path: Path) -> str | None:
+    """The algorithm the ``run.json`` beside a zip names, if any (a hint for which class to load it with)."""
+    try:
+        info = read_json(zip_path.parent / "run.json", "run file")
+    except UnsafeInputError:
+        return None
+    return info.get("algo") if isinstance(info, dict) else None

@@ -8,15 +8,16 @@ run it came from, and the SHA-256 of the weights file, checked on every load.
 from __future__ import annotations
 
 import hashlib
-import json
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 import torch
+from safetensors import SafetensorError, safe_open
 from safetensors.torch import load_file, save_file
 
 from autoscoop.agents.networks import PaperActor
+from autoscoop.core.safe_files import UnsafeInputError, atomic_output, quote, read_json, write_json_atomically
 from autoscoop.core.state import recorded_state_frame
 
 FORMAT = "autoscoop-actor/1"
@@ -35,52 +36,83 @@ def sha256_of(path: str | Path) -> str:
     return digest.hexdigest()
 
 
+MAX_WEIGHTS_BYTES = 64 << 20
+"""cap of an actor's ``.safetensors`` file, bytes (the paper's actor is about 60 KB)."""
+MAX_SIDECAR_BYTES = 64 << 10
+"""cap of an actor's ``.json`` sidecar, bytes."""
+MAX_LAYERS, MAX_WIDTH = 16, 4096
+"""the most hidden layers, and units per layer, a sidecar may declare."""
+
+
 def save_actor(actor: PaperActor, path: str | Path, metadata: dict[str, Any] | None = None) -> Path:
-    """Write ``path`` (.safetensors) and its ``.json`` sidecar; return the weights path."""
+    """Write ``path`` (.safetensors) and its ``.json`` sidecar, each atomically; return the weights path."""
     path = Path(path).with_suffix(".safetensors")
-    path.parent.mkdir(parents=True, exist_ok=True)
     tensors = {name: tensor.detach().cpu().contiguous() for name, tensor in actor.state_dict().items()}
-    save_file(tensors, str(path))
+    with atomic_output(path) as tmp:
+        save_file(tensors, str(tmp))
     sidecar = {"format": FORMAT, "layers": list(actor.layers), "output": "tanh", "sha256": sha256_of(path),
                **(metadata or {})}
-    path.with_suffix(".json").write_text(json.dumps(sidecar, indent=2) + "\n")
+    write_json_atomically(path.with_suffix(".json"), sidecar)
     return path
 
 
 def load_actor(path: str | Path) -> tuple[PaperActor, dict[str, Any]]:
-    """Read an actor written by :func:`save_actor`, checking format and hash.
+    """Read an actor written by :func:`save_actor`, checking, before anything is allocated, the files' sizes,
+    the sidecar's format and hash, and its layers against the weights file's own header.
 
     Raises:
-        PolicyFileError: when a file is missing, the format is unknown or the hash differs.
+        PolicyFileError: when a file is missing, too large or malformed, the format is unknown, the hash
+            differs or the weights do not fit the recorded architecture.
     """
     path = Path(path).with_suffix(".safetensors")
     sidecar_path = path.with_suffix(".json")
     if not path.is_file() or not sidecar_path.is_file():
         raise PolicyFileError(f"policy file {path} needs both {path.name} and {sidecar_path.name}")
     try:
-        meta = json.loads(sidecar_path.read_text())
-    except json.JSONDecodeError as error:
-        raise PolicyFileError(f"{sidecar_path}: not valid JSON ({error})") from error
+        meta = read_json(sidecar_path, "policy sidecar", MAX_SIDECAR_BYTES)
+    except UnsafeInputError as error:
+        raise PolicyFileError(str(error)) from None
     if not isinstance(meta, dict):
         raise PolicyFileError(f"{sidecar_path}: expected a JSON object with format, layers and sha256, "
                               f"got a {type(meta).__name__}")
     if meta.get("format") != FORMAT:
-        raise PolicyFileError(f"{sidecar_path}: format {meta.get('format')!r}, expected {FORMAT!r}")
+        raise PolicyFileError(f"{sidecar_path}: format {quote(meta.get('format'))}, expected {FORMAT!r}")
+    if path.stat().st_size > MAX_WEIGHTS_BYTES:
+        raise PolicyFileError(f"{path}: larger than {MAX_WEIGHTS_BYTES} bytes; not an actor autoscoop writes")
     actual = sha256_of(path)
     if actual != meta.get("sha256"):
-        raise PolicyFileError(f"{path}: SHA-256 {actual} does not match the recorded {meta.get('sha256')}")
+        raise PolicyFileError(f"{path}: SHA-256 {actual} does not match the recorded {quote(meta.get('sha256'))}")
     layers = meta.get("layers")
-    if not (isinstance(layers, list) and layers and all(isinstance(n, int) and not isinstance(n, bool) and n > 0
-                                                        for n in layers)):
-        raise PolicyFileError(f"{sidecar_path}: 'layers' must be a non-empty list of positive whole numbers "
-                              f"(hidden layer widths, e.g. [100, 80, 60]); got {layers!r}")
+    if not (isinstance(layers, list) and 0 < len(layers) <= MAX_LAYERS
+            and all(isinstance(n, int) and not isinstance(n, bool) and 0 < n <= MAX_WIDTH for n in layers)):
+        raise PolicyFileError(f"{sidecar_path}: 'layers' must be a list of 1 to {MAX_LAYERS} whole numbers in "
+                              f"[1, {MAX_WIDTH}] (hidden layer widths, e.g. [100, 80, 60]); got {quote(layers)}")
+    _check_header(path, layers)
     actor = PaperActor(layers=layers)
     try:
         actor.load_state_dict(load_file(str(path)))
-    except (RuntimeError, KeyError) as error:
-        raise PolicyFileError(f"{path}: weights do not fit the recorded architecture ({error})") from error
+    except (RuntimeError, KeyError, SafetensorError) as error:
+        raise PolicyFileError(f"{path}: weights do not fit the recorded architecture ({quote(str(error))})") from None
     actor.eval()
     return actor, meta
+
+
+def _check_header(path: Path, layers: list[int]) -> None:
+    """Compare the tensors the weights file declares (names, float32, shapes) with those of an actor of
+    ``layers``, built on torch's ``meta`` device (no memory)."""
+    try:
+        with safe_open(str(path), framework="pt") as weights:
+            found = {name: (weights.get_slice(name).get_dtype(), tuple(weights.get_slice(name).get_shape()))
+                     for name in weights.keys()}
+    except (SafetensorError, OSError) as error:
+        raise PolicyFileError(f"{path}: not a readable safetensors file ({quote(str(error))})") from None
+    with torch.device("meta"):
+        expected = {name: ("F32", tuple(tensor.shape)) for name, tensor in PaperActor(layers=layers).state_dict().items()}
+    if found != expected:
+        differ = sorted(name for name in found.keys() | expected.keys() if found.get(name) != expected.get(name))
+        shown = ", ".join(f"{name} {found.get(name, 'missing')} (expected {expected.get(name, 'none')})"
+                          for name in differ[:3])
+        raise PolicyFileError(f"{path}: weights do not fit the recorded architecture {layers}: {quote(shown, 400)}")
 
 
 class ActorPolicy:
@@ -124,3 +156,30 @@ def actor_from_sb3(model: Any) -> PaperActor:
     actor.body.load_state_dict(body.state_dict())
     actor.head.load_state_dict(head.state_dict())
     return actor.eval()
+
+
+def actor_into_sb3(actor: PaperActor, model: Any) -> None:
+    """Copy ``actor``'s weights into an SB3 model built with the paper's policy (DDPG, TD3: the actor and its
+    target; SAC: the mean of its actor); the inverse of :func:`actor_from_sb3`. The critic is left as it is.
+
+    Raises:
+        PolicyFileError: the model has no such actor, or one of other layer widths.
+    """
+    from autoscoop.agents.sb3_policies import PaperActorSB3  # noqa: PLC0415
+
+    sb3_actor = getattr(model.policy, "actor", None)
+    if isinstance(sb3_actor, PaperActorSB3):
+        body, head = sb3_actor.mu[0], sb3_actor.mu[1]
+    elif hasattr(sb3_actor, "latent_pi") and hasattr(sb3_actor, "mu"):
+        body, head = sb3_actor.latent_pi, sb3_actor.mu
+    else:
+        raise PolicyFileError(f"a {type(model).__name__} model has no paper actor to start from a safe actor file")
+    try:
+        body.load_state_dict(actor.body.state_dict())
+        head.load_state_dict(actor.head.state_dict())
+    except RuntimeError as error:
+        raise PolicyFileError(f"the actor's layers {list(actor.layers)} do not fit this run's networks "
+                              f"({quote(str(error))})") from None
+    target = getattr(model.policy, "actor_target", None)
+    if target is not None:
+        target.load_state_dict(sb3_actor.state_dict())

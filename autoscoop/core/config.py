@@ -23,7 +23,7 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_valida
 from pydantic.fields import FieldInfo
 
 from autoscoop.core import kinematics
-from autoscoop.core.safe_files import UnsafeInputError, read_yaml, write_text_atomically
+from autoscoop.core.safe_files import UnsafeInputError, quote, read_yaml, write_text_atomically
 
 
 class ConfigError(ValueError):
@@ -215,11 +215,11 @@ def _message(error: dict[str, Any], key: str, leaf: FieldInfo | None, item: bool
     kind, value = error["type"], error["input"]
     if kind == "value_error":
         reason = error["ctx"]["error"]
-        return f"{key} = {value!r} {reason}" if leaf is not None else str(reason)
+        return f"{key} = {quote(value)} {reason}" if leaf is not None else str(reason)
     if kind == "missing":
         return f"{key} is required"
     if leaf is None:
-        return f"{key} must be a mapping of keys, got {value!r}"
+        return f"{key} must be a mapping of keys, got {quote(value)}"
     extra = leaf.json_schema_extra or {}
     unit, low, high = extra.get("unit", "-"), extra.get("low"), extra.get("high")
     span = f"[{low}, {high}]"
@@ -227,26 +227,26 @@ def _message(error: dict[str, Any], key: str, leaf: FieldInfo | None, item: bool
     shown = _as_float(value) if type(value) is int and leaf.annotation is not int else value  # as a float field holds it
     choices = _choices(leaf.annotation)
     if choices is not None:
-        return f"{key} = {value!r} is not allowed; choose one of {choices}"
+        return f"{key} = {quote(value)} is not allowed; choose one of {choices}"
     if typing.get_origin(leaf.annotation) is tuple:
         if item and kind in ("greater_than_equal", "less_than_equal"):
-            return f"{key} holds {shown!r}, out of range; allowed {span} {unit}"
+            return f"{key} holds {quote(shown)}, out of range; allowed {span} {unit}"
         if item:
-            return f"{key} holds {value!r}, not a finite number; it must be a list of numbers{in_range}"
+            return f"{key} holds {quote(value)}, not a finite number; it must be a list of numbers{in_range}"
         if kind == "too_short":
-            return f"{key} = {value!r} must be a list of at least {error['ctx']['min_length']} numbers"
-        return f"{key} = {value!r} must be a list of numbers{in_range}"
+            return f"{key} = {quote(value)} must be a list of at least {error['ctx']['min_length']} numbers"
+        return f"{key} = {quote(value)} must be a list of numbers{in_range}"
     if kind == "int_type":
-        return f"{key} = {value!r} must be an integer in {span}"
+        return f"{key} = {quote(value)} must be an integer in {span}"
     if kind in ("float_type", "float_parsing"):
-        return f"{key} = {value!r} must be a number in {span} {unit}"
+        return f"{key} = {quote(value)} must be a number in {span} {unit}"
     if kind == "finite_number":
-        return f"{key} = {value!r} must be finite, in {span} {unit}"
+        return f"{key} = {quote(value)} must be finite, in {span} {unit}"
     if kind in ("greater_than_equal", "less_than_equal"):
-        return f"{key} = {shown!r} is out of range; allowed {span} {unit}"
+        return f"{key} = {quote(shown)} is out of range; allowed {span} {unit}"
     if kind == "string_type":
-        return f"{key} = {value!r} must be a string"
-    return f"{key} = {value!r}: {error['msg']}"
+        return f"{key} = {quote(value)} must be a string"
+    return f"{key} = {quote(value)}: {error['msg']}"
 
 
 def _as_float(value: int) -> float | int:

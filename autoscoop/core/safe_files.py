@@ -152,6 +152,8 @@ def parse_yaml(text: str, source: str) -> Any:
         raise UnsafeInputError(f"{source}: not valid YAML{where}: {problem[:QUOTE_CHARS]}") from None
     except RecursionError:
         raise UnsafeInputError(f"{source}: nested too deeply") from None
+    except ValueError as error:  # a value YAML's own types refuse, e.g. an integer of more than 4300 digits
+        raise UnsafeInputError(f"{source}: not valid YAML: {str(error)[:QUOTE_CHARS]}") from None
 
 
 def read_yaml(path: str | Path, what: str, limit: int = MAX_YAML_BYTES) -> Any:

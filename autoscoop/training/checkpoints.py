@@ -21,8 +21,16 @@ from typing import Any
 
 from filelock import FileLock, Timeout
 
-from autoscoop.agents.loading import zip_is_vouched_for
-from autoscoop.agents.policy_files import PolicyFileError, actor_from_sb3, save_actor, sha256_of
+from autoscoop.agents.loading import refuse_untrusted_zip
+from autoscoop.agents.policy_files import (
+    PolicyFileError,
+    actor_from_sb3,
+    actor_into_sb3,
+    load_actor,
+    save_actor,
+    sha256_of,
+)
+from autoscoop.core.safe_files import quote, read_json
 from autoscoop.core.version import __version__
 from autoscoop.training.model_state import BUFFER_FILE, TENSORS_FILE, load_model_state, save_model_state
 
@@ -307,12 +315,15 @@ def read_run_json(run_dir: Path) -> dict[str, Any]:
     """A run directory's ``run.json``.
 
     Raises:
-        ValueError: ``run_dir`` has none.
+        ValueError: ``run_dir`` has none, or it is too large or not a JSON object (the message names it).
     """
     info_path = run_dir / "run.json"
     if not info_path.exists():
         raise ValueError(f"{run_dir} is not a run directory (no run.json)")
-    return json.loads(info_path.read_text())
+    info = read_json(info_path, "run file")
+    if not isinstance(info, dict):
+        raise ValueError(f"run file {info_path}: expected a JSON object, got a {type(info).__name__}")
+    return info
 
 
 LOCK_FILE = ".lock"
@@ -358,29 +369,47 @@ def lock_run_dir(run_dir: Path) -> Iterator[None]:
         lock.release()
 
 
-def init_model_zip(run_dir: Path, algo: str, trust: bool) -> Path:
-    """The SB3 zip of a finished run to fine-tune from, after checking that it may be loaded.
+def init_source(run_dir: Path, algo: str, trust: bool) -> Path:
+    """The file of a finished run to fine-tune from, checked now (before a new run directory is made).
+
+    Without ``trust`` that is the run's safe actor (``policy.safetensors``: the actor starts from it, the
+    critic from fresh weights); with ``trust``, its ``policy.zip`` (the whole model, pickle inside). Nothing in
+    the run directory vouches for its own zip: whoever can write the zip can write ``run.json``.
 
     Raises:
-        ValueError: not a run directory, another algorithm, or a zip the run does not vouch for
-            (its ``run.json`` records the SHA-256) and ``trust`` is false.
+        ValueError: not a run directory, another algorithm, a safe actor that does not load, or only a zip
+            and no ``trust``.
     """
     run_dir = Path(run_dir)
-    zip_path = run_dir / "policy.zip"
-    if not (run_dir / "run.json").is_file() or not zip_path.is_file():
-        raise ValueError(f"--init {run_dir}: not a training run directory (needs run.json and policy.zip)")
-    source_algo = json.loads((run_dir / "run.json").read_text()).get("algo")
+    if not (run_dir / "run.json").is_file():
+        raise ValueError(f"--init {run_dir}: not a training run directory (needs run.json)")
+    source_algo = read_run_json(run_dir).get("algo")
     if source_algo != algo:
-        raise ValueError(f"--init {run_dir}: that run trained {source_algo!r}, this one trains {algo!r}")
-    if not trust and not zip_is_vouched_for(zip_path):
-        raise ValueError(f"--init {run_dir}: its run.json does not vouch for policy.zip (SHA-256), and loading "
-                         "a zip runs pickle; pass --trust if you trust where it came from")
-    return zip_path
+        raise ValueError(f"--init {run_dir}: that run trained {quote(source_algo)}, this one trains {algo!r}")
+    zip_path, actor_path = run_dir / "policy.zip", run_dir / "policy.safetensors"
+    if trust and zip_path.is_file():
+        return zip_path
+    if actor_path.is_file():
+        load_actor(actor_path)  # its format, hash and shapes, now
+        return actor_path
+    if zip_path.is_file():
+        refuse_untrusted_zip(zip_path, trust, "--init")
+    raise ValueError(f"--init {run_dir}: holds neither policy.safetensors nor policy.zip")
 
 
-def load_init_weights(model: Any, zip_path: Path, sha256: str) -> None:
-    """Copy the networks (actor, critic and their targets) of a vetted SB3 zip into ``model``."""
-    if sha256_of(zip_path) != sha256:
-        raise ValueError(f"{zip_path} changed since this run started from it (SHA-256); refusing to load it")
-    source = type(model).load(zip_path, device="cpu")
+def load_init_weights(model: Any, path: Path, sha256: str, trust: bool) -> None:
+    """Copy the policy a run starts from (:func:`init_source`) into ``model``: a safe actor into its actor, a
+    zip's networks (actor, critic and their targets) only with ``trust``.
+
+    Raises:
+        ValueError: the file changed since the run recorded it, does not fit, or is a zip without ``trust``.
+    """
+    if not path.is_file() or sha256_of(path) != sha256:
+        raise ValueError(f"{path} is missing or changed since this run started from it (SHA-256); refusing to load it")
+    if path.suffix == ".safetensors":
+        actor, _ = load_actor(path)
+        actor_into_sb3(actor, model)
+        return
+    refuse_untrusted_zip(path, trust, "--init")
+    source = type(model).load(path, device="cpu")
     model.policy.load_state_dict(source.policy.state_dict())

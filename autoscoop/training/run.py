@@ -25,6 +25,7 @@ evaluated actors and ``policy.*`` as training goes, :mod:`autoscoop.training.che
 
 from __future__ import annotations
 
+import shutil
 import sys
 import time
 from collections.abc import Callable
@@ -41,13 +42,14 @@ from autoscoop.agents.algorithms import ALGORITHMS
 from autoscoop.agents.demonstrations import add_scripted_demonstrations
 from autoscoop.agents.policy_files import sha256_of
 from autoscoop.core.config import ScoopConfig, from_dict, save_yaml
+from autoscoop.core.safe_files import write_text_atomically
 from autoscoop.core.version import __version__
 from autoscoop.training.callbacks import EpisodeLogger, Evaluation, PolicyEvaluator
 from autoscoop.training.checkpoints import (
     actor_meta,
     clear_run_outputs,
     find_checkpoint,
-    init_model_zip,
+    init_source,
     load_checkpoint,
     load_init_weights,
     lock_run_dir,
@@ -58,6 +60,7 @@ from autoscoop.training.checkpoints import (
     write_run_json,
 )
 from autoscoop.training.factories import make_noise, make_policy, make_training_env, make_vec_env
+from autoscoop.training.hyper_ranges import check_training_settings
 from autoscoop.training.learning_curve import plot_learning_curve
 from autoscoop.training.recipes import SHIPPED_RECIPE
 from autoscoop.training.settings import config_at, curriculum_stages, load_recipe, with_hyper_overrides
@@ -93,7 +96,8 @@ class TrainArgs:
     init_from: Path | None = None
     """fine-tune: start from the policy of this finished run directory (same algorithm) instead of random weights."""
     trust: bool = False
-    """allow ``init_from`` to name a run whose ``run.json`` does not vouch for its ``policy.zip`` (pickle)."""
+    """fine-tune from ``init_from``'s ``policy.zip`` (the whole model; pickle, so only when trusted) rather than
+    its safe actor file ``policy.safetensors``."""
     hyper: dict[str, str] = field(default_factory=dict)
     """overrides of the algorithm's YAML, ``{"noise.sigma_start": "0.05"}`` (see
     :func:`autoscoop.training.settings.with_hyper_overrides`)."""
@@ -141,21 +145,27 @@ def train(args: TrainArgs) -> Path:
         raise ValueError(f"learning_rate_end must be a number in (0, 1] beside hyperparams.learning_rate, got {end!r}")
     config = ScoopConfig().with_overrides({**(spec.get("env") or {}), **args.overrides})
     config_at(config, spec, args.episodes)  # a curriculum's stages are checked before anything starts
-    init_zip = init_model_zip(args.init_from, args.algo, args.trust) if args.init_from else None
+    check_training_settings(spec, args.n_envs)
+    init_path = init_source(args.init_from, args.algo, args.trust) if args.init_from else None
     run_dir = Path(args.out) if args.out else _default_run_dir(args)
+    created = not run_dir.exists()
     run_dir.mkdir(parents=True, exist_ok=True)
-    with lock_run_dir(run_dir):  # first: a run being written is reported as such, with its process
-        if (run_dir / "run.json").exists():
-            raise ValueError(f"{run_dir} already holds a run; use --resume {run_dir} to continue it, "
-                             "or another --out")
-        return _start(args, run_dir, config, spec, demos, init_zip)
+    try:
+        with lock_run_dir(run_dir):  # first: a run being written is reported as such, with its process
+            if (run_dir / "run.json").exists():
+                raise ValueError(f"{run_dir} already holds a run; use --resume {run_dir} to continue it, "
+                                 "or another --out")
+            return _start(args, run_dir, config, spec, demos, init_path)
+    except BaseException:
+        if created and not (run_dir / "run.json").exists():  # it failed before it began: no run is left behind
+            shutil.rmtree(run_dir, ignore_errors=True)
+        raise
 
 
 def _start(args: TrainArgs, run_dir: Path, config: ScoopConfig, spec: dict[str, Any], demos: int,
-           init_zip: Path | None) -> Path:
-    """Write a new run's files and train it (under the run directory's lock)."""
-    save_yaml(config, run_dir / "config.yaml")
-    (run_dir / "hyperparams.yaml").write_text(yaml.safe_dump(spec, sort_keys=False))
+           init_path: Path | None) -> Path:
+    """Build a new run's model, then write its files and train it (under the run directory's lock): a model
+    that cannot be built (a setting torch refuses, an initial policy that does not fit) leaves no run."""
     info = {"algo": args.algo, "recipe": args.recipe, "seed": args.seed, "episodes": args.episodes,
             "n_envs": args.n_envs,
             "autoscoop_version": __version__, "command": args.command or " ".join(sys.argv),
@@ -164,10 +174,13 @@ def _start(args: TrainArgs, run_dir: Path, config: ScoopConfig, spec: dict[str, 
             "eval_episodes": args.eval_episodes, "demo_episodes": demos,
             "state_frame": "level" if config.sensor.level_with_imu else "chassis",
             "status": "running", "wall_s": 0.0}
-    if init_zip is not None:
-        info.update(init_from=str(init_zip.resolve()), init_sha256=sha256_of(init_zip))
+    if init_path is not None:
+        info.update(init_from=str(init_path.resolve()), init_sha256=sha256_of(init_path))
+    model = _new_model(run_dir, config, spec, info, trust=args.trust)
+    save_yaml(config, run_dir / "config.yaml")
+    write_text_atomically(run_dir / "hyperparams.yaml", yaml.safe_dump(spec, sort_keys=False))
     write_run_json(run_dir, info)
-    return _run(run_dir, config, spec, info, done=0, model=None, progress=args.progress,
+    return _run(run_dir, config, spec, info, done=0, model=model, progress=args.progress,
                 on_evaluation=args.on_evaluation)
 
 
@@ -235,16 +248,21 @@ def _build_model(run_dir: Path, env: Any, spec: dict[str, Any], info: dict[str, 
                     policy_kwargs=policy_kwargs or None, verbose=0, **kwargs)
 
 
-def _new_model(run_dir: Path, config: ScoopConfig, spec: dict[str, Any], info: dict[str, Any]) -> Any:
+def _new_model(run_dir: Path, config: ScoopConfig, spec: dict[str, Any], info: dict[str, Any],
+               trust: bool = False) -> Any:
     """A fresh model on new environments: the initial run's weights when fine-tuning, demonstrations when asked."""
     env = make_vec_env(config, info["n_envs"], info["seed"], privileged_critic(spec))
-    model = _build_model(run_dir, env, spec, info, seed=info["seed"])
-    if info.get("init_from"):
-        load_init_weights(model, Path(info["init_from"]), info["init_sha256"])
-    if info.get("demo_episodes"):
-        added = add_scripted_demonstrations(model.replay_buffer, config, info["demo_episodes"],
-                                            make_env=partial(make_training_env, privileged=privileged_critic(spec)))
-        print(f"replay buffer: {added} transitions of {info['demo_episodes']} scripted scoops", file=sys.stderr)
+    try:
+        model = _build_model(run_dir, env, spec, info, seed=info["seed"])
+        if info.get("init_from"):
+            load_init_weights(model, Path(info["init_from"]), info["init_sha256"], trust)
+        if info.get("demo_episodes"):
+            added = add_scripted_demonstrations(model.replay_buffer, config, info["demo_episodes"],
+                                                make_env=partial(make_training_env, privileged=privileged_critic(spec)))
+            print(f"replay buffer: {added} transitions of {info['demo_episodes']} scripted scoops", file=sys.stderr)
+    except BaseException:
+        env.close()
+        raise
     return model
 
 
