@@ -53,7 +53,7 @@ def test_set_argument_needs_key_and_value():
 
 
 def test_gym_make_takes_overrides_and_sets_the_time_limit():
-    env = gym.make("autoscoop/Scoop-v0", **{"pile.angle_deg": 25, "env.max_episode_s": 2.0})
+    env = gym.make("autoscoop/Scoop-v1", **{"pile.angle_deg": 25, "env.max_episode_s": 2.0})
     assert env.unwrapped.config.pile.angle_deg == 25.0
     env.reset(seed=0)
     steps = 0
@@ -64,7 +64,7 @@ def test_gym_make_takes_overrides_and_sets_the_time_limit():
             break
     assert steps == 8 and truncated
     with pytest.raises(ConfigError, match="pile.angle_deg"):
-        gym.make("autoscoop/Scoop-v0", **{"pile.angle_deg": 5})
+        gym.make("autoscoop/Scoop-v1", **{"pile.angle_deg": 5})
 
 
 def test_angle_mix_gives_each_pile_variant_one_of_the_angles():

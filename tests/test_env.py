@@ -7,6 +7,7 @@ from gymnasium.utils.env_checker import check_env
 
 import autoscoop  # noqa: F401
 from autoscoop.core.state import STATE_NAMES
+from autoscoop.envs import registered_worlds
 from autoscoop.envs.outcome import EpisodeOutcome
 from autoscoop.envs.scoop import ScoopEnv
 from autoscoop.sim.scene import WHEEL_RADIUS_M, WHEELS
@@ -25,8 +26,47 @@ def rollout(env, seed, actions):
     return trace
 
 
-def test_check_env_passes():
-    check_env(gym.make("autoscoop/Scoop-v0", **SMALL).unwrapped, skip_render_check=True)
+@pytest.mark.parametrize("env_id", sorted(registered_worlds()))
+def test_check_env_passes_for_every_registered_id(env_id):
+    check_env(gym.make(env_id, **SMALL).unwrapped, skip_render_check=True)
+
+
+def test_the_registered_ids_are_the_paper_world_its_old_odometry_and_the_shipped_policys_world():
+    from autoscoop.core.config import ScoopConfig
+    from autoscoop.training.settings import config_at, load_recipe
+
+    worlds = registered_worlds()
+    assert set(worlds) == {"autoscoop/Scoop-v0", "autoscoop/Scoop-v1", "autoscoop/ScoopRobot-v1"}
+    assert gym.make("autoscoop/Scoop-v1").unwrapped.config == ScoopConfig()
+    assert gym.make("autoscoop/Scoop-v0").unwrapped.config == ScoopConfig().with_overrides(
+        {"sensor.odometry_window_steps": 1})
+    # the robot world is where a run of the shipped policy's recipe trains at its end
+    spec = load_recipe("ddpg", "robot_smooth")
+    trained_in = config_at(ScoopConfig().with_overrides(spec["env"]), spec, spec["episodes"])
+    robot = gym.make("autoscoop/ScoopRobot-v1").unwrapped.config
+    assert robot == trained_in
+    assert robot.randomize.preset == "robot" and robot.sensor.level_with_imu
+    # keys given to gym.make are laid over the id's own
+    assert gym.make("autoscoop/ScoopRobot-v1", **{"pile.angle_deg": 25}).unwrapped.config == \
+        trained_in.with_overrides({"pile.angle_deg": 25})
+    # every id has its entry in the class docstring's version history
+    history = ScoopEnv.__doc__.split("## Version History")[1]
+    assert all(f"``{env_id}``" in history for env_id in worlds)
+
+
+def test_scoop_v0_reads_the_instantaneous_wheel_speed_and_v1_the_mean_of_two_physics_steps():
+    def speeds(env_id):
+        env = gym.make(env_id, **SMALL)
+        env.reset(seed=3)
+        data, out = env.unwrapped.sim.data, []
+        for _ in range(6):
+            obs, *_ = env.step(np.array([1.0, 0.3, 0.0], dtype=np.float32))
+            now = np.mean([data.joint(wheel).qvel[0] for wheel in WHEELS]) * WHEEL_RADIUS_M
+            out.append((obs[STATE_NAMES.index("v")], np.float32(now)))
+        return out
+
+    assert all(read == now for read, now in speeds("autoscoop/Scoop-v0"))
+    assert any(read != now for read, now in speeds("autoscoop/Scoop-v1"))
 
 
 def test_spaces_match_the_paper():
@@ -113,3 +153,14 @@ def test_terminal_distance_is_measured_in_the_arms_plane():
     expected = np.hypot(tip[0] - env.config.reward.terminal_dx_m, tip[2] - env.config.reward.terminal_z_m)
     assert drifted["tip_to_terminal_m"] == pytest.approx(expected)
     assert drifted["tip_to_terminal_m"] == pytest.approx(straight["tip_to_terminal_m"], abs=2e-3)
+
+
+@pytest.mark.parametrize("command", ["train", "eval", "stress"])
+def test_train_eval_and_stress_say_how_their_config_names_the_registered_ids(command, capsys):
+    from autoscoop.cli import main
+
+    with pytest.raises(SystemExit):
+        main([command, "--help"])
+    text = "".join(capsys.readouterr().out.split())  # argparse wraps lines, at hyphens too
+    for env_id, keys in registered_worlds().items():
+        assert env_id in text and all(f"{key}=" in text for key in keys)

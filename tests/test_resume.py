@@ -120,7 +120,7 @@ def resumed_from(monkeypatch):
 def _small_model(algo: str, seed: int):
     from stable_baselines3.common.noise import NormalActionNoise, OrnsteinUhlenbeckActionNoise
 
-    env = gym.make("autoscoop/Scoop-v0", **{"pile.variants": 1})
+    env = gym.make("autoscoop/Scoop-v1", **{"pile.variants": 1})
     if algo == "ppo":
         return ALGORITHMS[algo]("MlpPolicy", env, n_steps=32, batch_size=16, n_epochs=1, seed=seed, device="cpu")
     kwargs = {"learning_starts": 16, "buffer_size": 300, "batch_size": 16}

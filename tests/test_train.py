@@ -37,7 +37,7 @@ def test_paper_policy_layer_sizes_and_merge_point():
 
     from autoscoop.agents.sb3_policies import PaperPolicy
 
-    model = DDPG(PaperPolicy, gym.make("autoscoop/Scoop-v0", **{"pile.variants": 1}), buffer_size=100)
+    model = DDPG(PaperPolicy, gym.make("autoscoop/Scoop-v1", **{"pile.variants": 1}), buffer_size=100)
     actor, critic = model.policy.actor, model.policy.critic
     assert linear_sizes(actor) == [(12, 100), (100, 80), (80, 60), (60, 3)]
     assert [m.normalized_shape for m in actor.modules() if isinstance(m, nn.LayerNorm)] == [(100,), (80,), (60,)]

@@ -8,12 +8,13 @@ from pathlib import Path
 from autoscoop.agents.loading import load_policy
 from autoscoop.commands import check_output_file, config_from_args, options, prepare_records_dir, write_json
 from autoscoop.core.policy import config_for_policy
+from autoscoop.envs import worlds_help
 from autoscoop.evaluation.evaluate import evaluate, format_table, summarize
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
     parser = subparsers.add_parser("eval", help="evaluate a controller over N episodes",
-                                   description=__doc__)
+                                   description=__doc__, epilog=worlds_help())
     options.add_policy_option(parser, default="heuristic")
     options.add_episodes_option(parser, default=100)
     options.add_seed_option(parser)

@@ -10,13 +10,15 @@ import time
 from autoscoop.agents.loading import load_policy
 from autoscoop.commands import check_output_dir, check_output_file, config_from_args, options, write_json
 from autoscoop.core.version import __version__
+from autoscoop.envs import worlds_help
 from autoscoop.evaluation.stress import case_names, run_stress, select_cases
 from autoscoop.report.stress import stress_table, verdict, write_stress_report
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
     parser = subparsers.add_parser("stress", help="run a controller over the stress cases and check the thresholds",
-                                   description=__doc__)
+                                   description=__doc__, epilog=worlds_help("the paper's world, and each case's "
+                                                                           "keys over them"))
     options.add_policy_option(parser)
     options.add_episodes_option(parser, default=100, what="episodes per case")
     options.add_seed_option(parser, what="seed of the first episode; each case runs seeds SEED..SEED+EPISODES-1")

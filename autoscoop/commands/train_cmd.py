@@ -9,6 +9,7 @@ from typing import TYPE_CHECKING
 
 from autoscoop.commands import options
 from autoscoop.core.config import overrides_from_yaml, parse_set_args
+from autoscoop.envs import worlds_help
 from autoscoop.training.recipes import RECIPES, SHIPPED_RECIPE, recipes_help
 
 if TYPE_CHECKING:
@@ -30,7 +31,8 @@ the settings in its ``config.yaml`` and ``hyperparams.yaml``."""
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
-    parser = subparsers.add_parser("train", help="train a controller", description=__doc__)
+    parser = subparsers.add_parser("train", help="train a controller", description=__doc__,
+                                   epilog=worlds_help("the recipe's (its env keys, then its curriculum's)"))
     parser.add_argument("--algo", choices=["ddpg", "td3", "sac", "ppo"],
                         help="algorithm (default ddpg, the paper's); settings in autoscoop/training/hyperparams/ALGO.yaml")
     parser.add_argument("--recipe", choices=RECIPES,

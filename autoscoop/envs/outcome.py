@@ -65,7 +65,7 @@ class EpisodeOutcome:
 
     @classmethod
     def from_info(cls, info: Mapping[str, Any], *, seed: int, steps: int, episode_return: float) -> EpisodeOutcome:
-        """The outcome from the last ``info`` of an episode of ``autoscoop/Scoop-v0`` (or an info of the same keys)."""
+        """The outcome from the last ``info`` of an episode of an ``autoscoop/`` environment (or an info of the same keys)."""
         success = bool(info.get("success", False))
         cycle = info.get("cycle_time_s")
         cycle = None if cycle is None or not success or not math.isfinite(float(cycle)) else float(cycle)

@@ -1,4 +1,5 @@
-"""``autoscoop/Scoop-v0``: one continuous scoop of a particle pile by a skid-steer loader."""
+"""The scooping environment behind the ``autoscoop/`` Gymnasium ids: one continuous scoop of a particle pile by
+a skid-steer loader."""
 
 from __future__ import annotations
 
@@ -84,6 +85,20 @@ class ScoopEnv(gym.Env):
     ``fill_factor`` (mass / rated load), ``penetrating``, ``success``, ``cycle_time_s`` (on success),
     ``spilled`` (particles that were in the bucket and are not now), ``physics_error``,
     ``elapsed_s``, ``tip_to_pile_m``, ``tip_to_terminal_m``, ``lift_torque_nm``, ``tilt_torque_nm``.
+
+    ## Version History
+    Each id is this class with config keys of its own (``gym.spec(ID).kwargs``, :mod:`autoscoop.envs`).
+
+    * ``autoscoop/ScoopRobot-v1``: the world the shipped ``default`` policy is trained in: the randomised
+      ``robot`` world (``randomize.preset=robot``, docs/randomize.md), the state's tip and bucket joint in the
+      level frame (``sensor.level_with_imu``), and the reward of the ``robot_smooth`` recipe with DDPG's
+      ``reward.c_w`` (``fill_measure=scoop``, ``c_overload``, ``distance_scale_m``, ``c_action_change``).
+    * ``autoscoop/Scoop-v1``: the paper's world as :class:`ScoopConfig` gives it. The speed reading is the
+      wheels' mean speed over ``sensor.odometry_window_steps`` (2) physics steps, as an encoder counts it.
+    * ``autoscoop/Scoop-v0``: the paper's world with the one-step odometry (``sensor.odometry_window_steps=1``):
+      the instantaneous wheel speed, which rings at the physics step while the wheels push into the pile.
+      Its observations are those of the first version, to the bit; success and the other metrics are
+      counted as in v1.
 
     Args:
         config: the scene and task configuration; defaults to :class:`ScoopConfig`.
@@ -337,6 +352,7 @@ class ScoopEnv(gym.Env):
 
 def make_scoop_env(config: ScoopConfig | None = None, render_mode: str | None = None,
                    **overrides: Any) -> gym.Env:
-    """``gym.make("autoscoop/Scoop-v0", ...)`` entry point: the env inside a ``TimeLimit`` of ``env.max_episode_s``."""
+    """The entry point of every ``autoscoop/`` id (``gym.make("autoscoop/Scoop-v1", ...)``): the env inside a
+    ``TimeLimit`` of ``env.max_episode_s``."""
     env = ScoopEnv(config=config, render_mode=render_mode, **overrides)
     return TimeLimit(env, max_episode_steps=env.config.max_episode_steps)

@@ -1,5 +1,6 @@
 """The training recipes: one YAML file each in this folder, and the registry every consumer reads
-(``autoscoop train --recipe``'s choices and help, a sweep's ``recipe``, the docs, the registered worlds).
+(``autoscoop train --recipe``'s choices and help, a sweep's ``recipe``, the docs, the worlds of
+:data:`RECIPE_WORLDS`).
 
 A recipe is laid over an algorithm's YAML (``autoscoop/training/hyperparams/ALGO.yaml``). Its file holds:
 
@@ -18,6 +19,8 @@ from importlib import resources
 from typing import Any
 
 import yaml
+
+from autoscoop.envs import register_world
 
 PAPER_RECIPE = "paper"
 """the paper's recipe: its DDPG in its world, from random weights, 800 episodes."""
@@ -105,3 +108,15 @@ def recipes_help() -> str:
     """Every recipe with its summary, the shipped one marked as the default: the text of ``--recipe``'s help."""
     lines = [f"{name}{' (default)' if name == SHIPPED_RECIPE else ''}: {recipe_summary(name)}" for name in RECIPES]
     return "; ".join(lines)
+
+
+RECIPE_WORLDS = {"autoscoop/ScoopRobot-v1": ("robot_smooth", "ddpg")}
+"""Gymnasium ids registered from a recipe: the world that recipe trains in at its end, with that algorithm's
+``env`` keys (:func:`training_world`). ``autoscoop/ScoopRobot-v1`` is the world the shipped ``default`` policy is
+trained in. The recipe's merged settings are pinned by the tests, so the world under an id stays as it is."""
+
+
+def register_recipe_worlds() -> None:
+    """Register the ids of :data:`RECIPE_WORLDS` (idempotent)."""
+    for env_id, (recipe, algo) in RECIPE_WORLDS.items():
+        register_world(env_id, training_world(recipe, algo))
