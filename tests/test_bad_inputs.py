@@ -63,7 +63,7 @@ def test_a_bad_value_in_a_config_file_names_the_file_and_key(tmp_path, capsys):
     bad.write_text("pile:\n  angle_deg: 99\n")
     assert main(["config", "--config", str(bad)]) == 2
     err = capsys.readouterr().err
-    assert str(bad) in err and "pile.angle_deg = 99.0 is out of range" in err
+    assert str(bad) in err and "pile.angle_deg = 99: Input should be less than or equal to 60" in err
 
 
 def test_eval_refuses_a_non_empty_records_folder(tmp_path, capsys, no_episodes):

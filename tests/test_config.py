@@ -20,12 +20,13 @@ def test_required_keys_exist_with_paper_defaults():
 
 
 @pytest.mark.parametrize("key, value, fragment", [
-    ("pile.angle_deg", "80", "allowed [15.0, 60.0]"),
-    ("pile.n_particles", "0", "allowed [1, 400]"),
-    ("pile.n_particles", "2.5", "must be an integer"),
-    ("pile.radius_m", "nan", "must be a number"),
-    ("robot.start_gap_m", "-1", "robot.start_gap_m"),
-    ("env.mass_source", "scale", "choose one of"),
+    ("pile.angle_deg", "80", "pile.angle_deg = 80: Input should be less than or equal to 60 (allowed [15.0, 60.0] deg)"),
+    ("pile.n_particles", "0", "pile.n_particles = 0: Input should be greater than or equal to 1 (allowed [1, 400])"),
+    ("pile.n_particles", "2.5", "pile.n_particles = 2.5: Input should be a valid integer (allowed [1, 400])"),
+    ("pile.radius_m", "nan", "pile.radius_m = 'nan': Input should be a valid number (allowed [0.01, 0.08] m)"),
+    ("pile.radius_m", float("nan"), "pile.radius_m = nan: Input should be a finite number (allowed [0.01, 0.08] m)"),
+    ("robot.start_gap_m", "-1", "robot.start_gap_m = -1: Input should be greater than or equal to 0"),
+    ("env.mass_source", "scale", "env.mass_source = 'scale': Input should be 'truth' or 'torque'"),
 ])
 def test_bad_values_name_the_key_and_range(key, value, fragment):
     with pytest.raises(ConfigError) as error:
@@ -33,9 +34,13 @@ def test_bad_values_name_the_key_and_range(key, value, fragment):
     assert key in str(error.value) and fragment in str(error.value)
 
 
-def test_unknown_key_is_refused_with_the_known_keys():
-    with pytest.raises(ConfigError, match="unknown config key 'pile.angel_deg'.*pile.angle_deg"):
+def test_unknown_key_is_refused_with_the_nearest_or_the_known_keys():
+    with pytest.raises(ConfigError, match="unknown config key 'pile.angel_deg'; did you mean pile.angle_deg or"):
         ScoopConfig().with_overrides({"pile.angel_deg": 30})
+    with pytest.raises(ConfigError, match="unknown config key 'pile.zzzzzz'; known in pile: angle_deg, angle_mix_deg,"):
+        ScoopConfig().with_overrides({"pile.zzzzzz": 30})
+    with pytest.raises(ConfigError, match="unknown config key 'zzz'; known sections: robot, pile, reward"):
+        ScoopConfig().with_overrides({"zzz": 30})
 
 
 def test_yaml_round_trip_and_dotted_keys(tmp_path):
@@ -76,7 +81,8 @@ def test_angle_mix_gives_each_pile_variant_one_of_the_angles():
         _, info = env.reset(seed=seed)
         angles.add(info["pile_angle_deg"])
     assert angles == {25.0, 40.0}
-    with pytest.raises(ConfigError, match=r"pile.angle_mix_deg holds 70.0, out of range; allowed \[15.0, 60.0\]"):
+    with pytest.raises(ConfigError, match=re.escape("pile.angle_mix_deg[1] = 70: Input should be less than or equal "
+                                                   "to 60 (allowed [15.0, 60.0] deg)")):
         ScoopConfig().with_overrides({"pile.angle_mix_deg": "[25, 70]"})
 
 
@@ -106,10 +112,11 @@ def test_ints_become_floats_and_the_checks_are_strict():
     assert type(c.pile.angle_deg) is float and type(c.reward.c_w) is float
     assert c.pile.angle_mix_deg == (25.0, 40.0) and all(type(a) is float for a in c.pile.angle_mix_deg)
     assert type(c.pile.n_particles) is int
-    for key, value, fragment in [("pile.angle_deg", True, "must be a number"), ("pile.n_particles", 3.0, "must be an integer"),
-                                 ("pile.rolling", 1, "is not allowed; choose one of [False, True]"),
-                                 ("pile.angle_mix_deg", 30, "must be a list of numbers, each in [15.0, 60.0] deg")]:
-        with pytest.raises(ConfigError, match=re.escape(f"{key} = {value!r} {fragment}")):
+    for key, value, fragment in [("pile.angle_deg", True, "Input should be a valid number (allowed [15.0, 60.0] deg)"),
+                                 ("pile.n_particles", 3.0, "Input should be a valid integer (allowed [1, 400])"),
+                                 ("pile.rolling", 1, "Input should be a valid boolean"),
+                                 ("pile.angle_mix_deg", 30, "Input should be a valid tuple (allowed [15.0, 60.0] deg)")]:
+        with pytest.raises(ConfigError, match=re.escape(f"{key} = {value!r}: {fragment}")):
             ScoopConfig().with_overrides({key: value})
 
 
@@ -120,11 +127,13 @@ def test_sections_built_directly_or_replaced_are_checked_too():
     smaller = c.replace(pile=c.pile.replace(n_particles=40, variants=1))
     assert (smaller.pile.n_particles, smaller.pile.variants, c.pile.n_particles) == (40, 1, 72)
     assert smaller.robot == c.robot and smaller != c
-    with pytest.raises(ConfigError, match=re.escape("pile.angle_deg = 80.0 is out of range; allowed [15.0, 60.0] deg")):
+    with pytest.raises(ConfigError, match=re.escape("pile.angle_deg = 80: Input should be less than or equal to 60 "
+                                                   "(allowed [15.0, 60.0] deg)")):
         c.pile.replace(angle_deg=80)
-    with pytest.raises(ConfigError, match=re.escape("pile.angle_deg = 80.0 is out of range")):
+    with pytest.raises(ConfigError, match=re.escape("pile.angle_deg = 80: Input should be less than or equal to 60")):
         PileConfig(angle_deg=80)
-    with pytest.raises(ConfigError, match=re.escape("pile.n_particles = 0 is out of range; allowed [1, 400]")):
+    with pytest.raises(ConfigError, match=re.escape("pile.n_particles = 0: Input should be greater than or equal to 1 "
+                                                   "(allowed [1, 400])")):
         ScoopConfig(pile={"n_particles": 0})
     with pytest.raises(ConfigError, match=r"env\.timestep_s"):
         c.replace(env=c.env.replace(timestep_s=0.03))

@@ -21,16 +21,18 @@ def test_defaults_match_the_paper_and_the_environment():
 
 
 @pytest.mark.parametrize("data, fragment", [
-    ({"control": {"input_timeout_s": 0}}, "control.input_timeout_s = 0.0 is out of range; allowed [0.02, 5.0] s"),
-    ({"control": {"control_period_s": "fast"}}, "control.control_period_s = 'fast' must be a number"),
-    ({"limits": {"max_speed_mps": 1.0}}, "limits.max_speed_mps = 1.0 is out of range; allowed [0.0, 0.5] m/s"),
+    ({"control": {"input_timeout_s": 0}},
+     "control.input_timeout_s = 0: Input should be greater than or equal to 0.02 (allowed [0.02, 5.0] s)"),
+    ({"control": {"control_period_s": "fast"}}, "control.control_period_s = 'fast': Input should be a valid number"),
+    ({"limits": {"max_speed_mps": 1.0}},
+     "limits.max_speed_mps = 1.0: Input should be less than or equal to 0.5 (allowed [0.0, 0.5] m/s)"),
     ({"limits": {"lift_max_rad": 0.5}}, "limits.lift_max_rad"),
     ({"limits": {"tilt_min_rad": 0.5, "tilt_max_rad": 0.2}}, "must be below limits.tilt_max_rad"),
-    ({"sensors": {"joint_margin_rad": float("nan")}}, "must be finite"),
+    ({"sensors": {"joint_margin_rad": float("nan")}}, "sensors.joint_margin_rad = nan: Input should be a finite number"),
     ({"sensors": {"lift_joint": "tilt"}}, "two different non-empty names"),
     ({"topics": {"cmd_vel": "cmd vel"}}, "topics.cmd_vel = 'cmd vel' is not a valid ROS name"),
     ({"topics": {"odom": "joint_states"}}, "each needs its own"),
-    ({"estop": {"required": "maybe"}}, "estop.required = 'maybe' is not allowed"),
+    ({"estop": {"required": "maybe"}}, "estop.required = 'maybe': Input should be a valid boolean"),
     ({"payload": {"calibration": "/no/such.yaml"}}, "payload.calibration"),
     ({"potentiometer": {"lift": {"raw": [1, 2, 2], "rad": [0, 0.1, 0.2]}}}, "strictly increasing or strictly"),
     ({"potentiometer": {"lift": {"raw": [1, 2], "rad": [0, 0.1, 0.2]}}}, "same length"),
@@ -123,9 +125,9 @@ def test_robot_config_coerces_ints_keeps_null_sections_and_validates_replace():
         c.replace(limits=c.limits.replace(lift_min_rad=0.32))
     with pytest.raises(ConfigError, match="control.input_timeout_s = 0.02 s is shorter than a tenth"):
         c.replace(control=c.control.replace(input_timeout_s=0.02))
-    with pytest.raises(ConfigError, match=r"sensors\.lift_joint = 3 must be a string"):
+    with pytest.raises(ConfigError, match=r"sensors\.lift_joint = 3: Input should be a valid string"):
         robot_config_from_dict({"sensors": {"lift_joint": 3}})
-    with pytest.raises(ConfigError, match=r"potentiometer\.tilt\.raw = \[1\] must be a list of at least 2 numbers"):
+    with pytest.raises(ConfigError, match=r"potentiometer\.tilt\.raw = \[1\]: Tuple should have at least 2 items"):
         robot_config_from_dict({"potentiometer": {"tilt": {"raw": [1], "rad": [0, 1]}}})
     assert set(RobotNodeConfig().to_dict()) == {"control", "limits", "sensors", "estop", "payload", "topics",
                                                  "potentiometer"}

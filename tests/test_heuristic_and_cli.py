@@ -40,7 +40,7 @@ def test_eval_command_writes_the_summary(tmp_path, capsys):
 
 def test_bad_input_gives_a_clear_error_and_exit_code(capsys):
     assert main(["eval", "--episodes", "1", "--set", "pile.angle_deg=99"]) == 2
-    assert "pile.angle_deg = 99.0 is out of range" in capsys.readouterr().err
+    assert "pile.angle_deg = 99: Input should be less than or equal to 60 (allowed [15.0, 60.0] deg)" in capsys.readouterr().err
     assert main(["eval", "--policy", "nonsense", "--episodes", "1"]) == 2
 
 

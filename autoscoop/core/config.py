@@ -11,6 +11,7 @@ robot node's config (:mod:`autoscoop.deploy.robot_config`) are both built from i
 
 from __future__ import annotations
 
+import difflib
 import math
 import types
 import typing
@@ -171,90 +172,52 @@ def _choices(annotation: Any) -> list | None:
 
 
 def _config_error(model: type[ConfigModel], details: list[dict[str, Any]], prefix: str = "") -> ConfigError:
-    """The :class:`ConfigError` for pydantic's error records from building ``model``.
-
-    Its message covers the first record (all unknown keys of the same section together); keys are
-    dotted, after ``prefix``.
+    """The :class:`ConfigError` for pydantic's error records from building ``model``: pydantic's own words for
+    the first record after its dotted key (``prefix`` first; ``[i]`` for a list item) and the value given,
+    then the field's allowed range and unit where it has one. Unknown keys of one section are named together,
+    with the section's known keys; a check written by hand (a validator's ``ValueError``) keeps its words.
     """
-    first = details[0]
-    nested = (first.get("ctx") or {}).get("error")
-    if isinstance(nested, ConfigError) and nested.details:  # raised by a section built inside this model
-        inner = [{**d, "loc": (*first["loc"], *d["loc"])} for d in nested.details]
-        return _config_error(model, inner + details[1:], prefix)
-    head = [part for part in prefix.split(".") if part]
-
-    def walk(loc: tuple) -> tuple[list[str], type[ConfigModel] | None, FieldInfo | None, bool]:
-        """Key parts, the model there (if a section), the field there (if a leaf), whether a list item."""
-        parts, owner, leaf, item = list(head), model, None, False
-        for part in loc:
-            if isinstance(part, int) or owner is None:
-                item = True
-                continue
-            leaf = next((f for key, _, f in _fields(owner) if key == part), None)
-            parts.append(str(part))
-            owner = _model_in(leaf.annotation) if leaf is not None else None
-            leaf = None if owner is not None else leaf
-        return parts, owner, leaf, item
-
-    parts, _, leaf, item = walk(tuple(first["loc"]))
-    key = ".".join(parts)
+    details = [inner for record in details for inner in _flattened(record)]
+    first, head = details[0], [part for part in prefix.split(".") if part]
+    where, _, leaf = _located(model, first["loc"])
+    key = ".".join(head + where) or model.label
+    reason = (first.get("ctx") or {}).get("error")
     if first["type"] == "extra_forbidden":
-        parent = tuple(first["loc"][:-1])
-        where, holder, _, _ = walk(parent)
-        bad = sorted(".".join([*where, str(d["loc"][-1])]) for d in details
-                     if d["type"] == "extra_forbidden" and tuple(d["loc"][:-1]) == parent)
+        section, holder, _ = _located(model, first["loc"][:-1])
+        bad = [str(d["loc"][-1]) for d in details if d["type"] == "extra_forbidden" and d["loc"][:-1] == first["loc"][:-1]]
         known = [k for k, _, _ in _fields(holder)] if holder else []
-        if not where:
-            return ConfigError(f"unknown {model.label} section(s) {sorted(k.split('.')[-1] for k in bad)}; "
-                               f"known: {known}", details)
-        return ConfigError(f"unknown {model.label} key(s) {bad}; known in {'.'.join(where)}: {known}", details)
-    return ConfigError(_message(first, key or model.label, leaf, item), details)
+        if not head + section:
+            return ConfigError(f"unknown {model.label} section(s) {sorted(bad)}; known: {known}", details)
+        dotted = sorted(".".join([*head, *section, name]) for name in bad)
+        return ConfigError(f"unknown {model.label} key(s) {dotted}; known in {'.'.join(head + section)}: {known}", details)
+    if first["type"] == "value_error":  # a check written by hand: its words (after the key, unless it names it)
+        named = isinstance(reason, ConfigError) or leaf is None
+        return ConfigError(str(reason) if named else f"{key} = {quote(first['input'])} {reason}", details)
+    extra = (leaf.json_schema_extra or {}) if leaf is not None else {}
+    unit = "" if extra.get("unit", "-") == "-" else f" {extra['unit']}"
+    allowed = f" (allowed [{extra['low']}, {extra['high']}]{unit})" if extra.get("low") is not None else ""
+    item = "".join(f"[{part}]" for part in first["loc"] if isinstance(part, int))
+    return ConfigError(f"{key}{item} = {quote(first['input'])}: {first['msg']}{allowed}", details)
 
 
-def _message(error: dict[str, Any], key: str, leaf: FieldInfo | None, item: bool) -> str:
-    kind, value = error["type"], error["input"]
-    if kind == "value_error":
-        reason = error["ctx"]["error"]
-        return f"{key} = {quote(value)} {reason}" if leaf is not None else str(reason)
-    if kind == "missing":
-        return f"{key} is required"
-    if leaf is None:
-        return f"{key} must be a mapping of keys, got {quote(value)}"
-    extra = leaf.json_schema_extra or {}
-    unit, low, high = extra.get("unit", "-"), extra.get("low"), extra.get("high")
-    span = f"[{low}, {high}]"
-    in_range = f", each in {span} {unit}" if low is not None else ""
-    shown = _as_float(value) if type(value) is int and leaf.annotation is not int else value  # as a float field holds it
-    choices = _choices(leaf.annotation)
-    if choices is not None:
-        return f"{key} = {quote(value)} is not allowed; choose one of {choices}"
-    if typing.get_origin(leaf.annotation) is tuple:
-        if item and kind in ("greater_than_equal", "less_than_equal"):
-            return f"{key} holds {quote(shown)}, out of range; allowed {span} {unit}"
-        if item:
-            return f"{key} holds {quote(value)}, not a finite number; it must be a list of numbers{in_range}"
-        if kind == "too_short":
-            return f"{key} = {quote(value)} must be a list of at least {error['ctx']['min_length']} numbers"
-        return f"{key} = {quote(value)} must be a list of numbers{in_range}"
-    if kind == "int_type":
-        return f"{key} = {quote(value)} must be an integer in {span}"
-    if kind in ("float_type", "float_parsing"):
-        return f"{key} = {quote(value)} must be a number in {span} {unit}"
-    if kind == "finite_number":
-        return f"{key} = {quote(value)} must be finite, in {span} {unit}"
-    if kind in ("greater_than_equal", "less_than_equal"):
-        return f"{key} = {quote(shown)} is out of range; allowed {span} {unit}"
-    if kind == "string_type":
-        return f"{key} = {quote(value)} must be a string"
-    return f"{key} = {quote(value)}: {error['msg']}"
+def _flattened(record: dict[str, Any]) -> list[dict[str, Any]]:
+    """A section's own error records in place of the one that carries them, located from the outer model."""
+    inner = (record.get("ctx") or {}).get("error")
+    if not (isinstance(inner, ConfigError) and inner.details):
+        return [record]
+    return [{**d, "loc": (*record["loc"], *d["loc"])} for d in inner.details]
 
 
-def _as_float(value: int) -> float | int:
-    """An int as a float field holds it; an int too large for a float stays as it is."""
-    try:
-        return float(value)
-    except OverflowError:
-        return value
+def _located(model: type[ConfigModel], loc: tuple) -> tuple[list[str], type[ConfigModel] | None, FieldInfo | None]:
+    """The key parts of ``loc`` (list indices left out), the section there (if one) and the field there (if not)."""
+    parts, owner, leaf = [], model, None
+    for part in loc:
+        if isinstance(part, int) or owner is None:
+            continue
+        leaf = next((f for key, _, f in _fields(owner) if key == part), None)
+        parts.append(str(part))
+        owner = _model_in(leaf.annotation) if leaf is not None else None
+    return parts, owner, None if owner is not None else leaf
 
 
 PILE_ANGLE_RANGE_DEG = (15.0, 60.0)
@@ -529,7 +492,11 @@ class ScoopConfig(ConfigModel):
         for key, value in overrides.items():
             section, _, name = str(key).partition(".")
             if section not in sections or name not in sections[section]:
-                raise ConfigError(f"unknown config key {key!r}; known keys: {', '.join(all_keys())}")
+                close = difflib.get_close_matches(str(key), all_keys(), n=3)
+                hint = (f"did you mean {' or '.join(close)}?" if close else
+                        f"known in {section}: {', '.join(sections[section])}" if section in sections else
+                        f"known sections: {', '.join(sections)} (`autoscoop config` lists every key)")
+                raise ConfigError(f"unknown config key {quote(key)}; {hint}")
             sections[section][name] = _parse_scalar(value) if isinstance(value, str) else value
         return ScoopConfig.from_dict(sections)
 
