@@ -106,6 +106,8 @@ def parser_of(path: tuple[str, ...]) -> argparse.ArgumentParser:
     (["export", "--onnx", "{tmp}/x.txt"], "argument --onnx"),
     (["ros", "sim", "not_a_remap"], "not_a_remap"),
     (["eval", "--set", "pile.angle_deg"], "key=value"),
+    (["payload"], "ACTION"),
+    (["ros"], "NODE"),
 ])
 def test_a_bad_choice_is_refused_before_any_work(argv, named, tmp_path, capsys):
     _assert_usage_error([arg.replace("{tmp}", str(tmp_path)) for arg in argv], named, capsys)

@@ -18,7 +18,6 @@ class AtLeast:
 
     def __init__(self, minimum: int) -> None:
         self.minimum = minimum
-        self.__name__ = f"integer of at least {minimum}"  # argparse names the type by it
 
     def __call__(self, text: str) -> int:
         try:
@@ -35,7 +34,6 @@ class NumberIn:
 
     def __init__(self, low: float | None = None, high: float | None = None, unit: str = "") -> None:
         self.low, self.high, self.unit = low, high, unit
-        self.__name__ = f"number in {self._span()}"
 
     def _span(self) -> str:
         low = "-inf" if self.low is None else f"{self.low:g}"

@@ -26,7 +26,7 @@ STATIC_JOINT_STEP_RAD = 0.005
 def register(subparsers: argparse._SubParsersAction) -> None:
     parser = subparsers.add_parser("payload", help="payload mass from joint torques: calibration",
                                    description=__doc__)
-    actions = parser.add_subparsers(dest="payload_action", metavar="ACTION")
+    actions = parser.add_subparsers(dest="payload_action", metavar="ACTION", required=True)
     calibrate = actions.add_parser("calibrate", help="fit torque offsets and the payload lever arm from records",
                                    description=__doc__)
     calibrate.add_argument("records", nargs="+", type=Path, help="episode records (.npz) or folders of them")
@@ -38,7 +38,6 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                            help="in records not marked static: use steps whose joints moved less than this "
                                 f"since the previous step (default {STATIC_JOINT_STEP_RAD} rad)")
     calibrate.set_defaults(func=run_calibrate)
-    parser.set_defaults(func=lambda args: parser.print_help() or 2)
 
 
 def record_paths(paths: list[Path]) -> list[Path]:

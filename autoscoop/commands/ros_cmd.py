@@ -19,7 +19,7 @@ from autoscoop.core.config import ConfigError, ScoopConfig, parse_set_args
 def register(subparsers: argparse._SubParsersAction) -> None:
     parser = subparsers.add_parser("ros", help="ROS 1 nodes: the controller on the robot, the simulator behind it",
                                    description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    nodes = parser.add_subparsers(dest="node", metavar="NODE")
+    nodes = parser.add_subparsers(dest="node", metavar="NODE", required=True)
 
     controller = nodes.add_parser("controller", help="run a policy on the robot's topics, with watchdog and limits",
                                   description=_CONTROLLER_DOC, formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -51,7 +51,6 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     options.add_config_args(sim)
     sim.add_argument("remap", nargs="*", type=ros_remap, metavar="NAME:=NEW", help="ROS remappings")
     sim.set_defaults(func=run_sim)
-    parser.set_defaults(func=lambda args: parser.print_help() or 2)
 
 
 LINK_OPTIONS = (
