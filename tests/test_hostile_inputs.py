@@ -7,11 +7,13 @@ from __future__ import annotations
 import hashlib
 import json
 import pickle
+import struct
 import zipfile
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from autoscoop.cli import main
@@ -168,6 +170,96 @@ def _yaml_case(command: str, kind: str) -> Case:
 
 
 CASES += [_yaml_case(command, kind) for command in YAML_COMMANDS for kind in HOSTILE_YAML]
+
+
+# ---------------------------------------------------------------------------------------- policy files
+def _actor_files(folder: Path, weights: bytes | None = None, **sidecar_changes) -> Path:
+    """A copy of the shipped actor in ``folder`` (``weights`` replacing its bytes, the sidecar's hash made to match
+    them, unless ``sha256`` is given), with ``sidecar_changes`` applied to its sidecar."""
+    folder.mkdir(parents=True, exist_ok=True)
+    data = weights if weights is not None else (SHIPPED / "default.safetensors").read_bytes()
+    (folder / "policy.safetensors").write_bytes(data)
+    sidecar = json.loads((SHIPPED / "default.json").read_text())
+    sidecar.update(sha256=hashlib.sha256(data).hexdigest())
+    sidecar.update(sidecar_changes)
+    (folder / "policy.json").write_text(json.dumps(sidecar))
+    return folder / "policy.safetensors"
+
+
+def _safetensors_claiming(shape: list[int]) -> bytes:
+    """A safetensors file whose header declares one float32 tensor of ``shape`` but holds 16 bytes."""
+    header = json.dumps({"head.weight": {"dtype": "F32", "shape": shape, "data_offsets": [0, 4 * int(np.prod(shape))]}})
+    return struct.pack("<Q", len(header)) + header.encode() + bytes(16)
+
+
+def _onnx_file(path: Path, dtype: int, input_shape: list, output_shape: list, formatted: bool = True) -> Path:
+    """A tiny ONNX graph ``action = tanh(state @ W)`` with the given input element type and shapes."""
+    import onnx
+    from onnx import helper, numpy_helper
+
+    weights = np.zeros((12, 3), dtype=onnx.helper.tensor_dtype_to_np_dtype(dtype))
+    graph = helper.make_graph(
+        [helper.make_node("MatMul", ["state", "W"], ["z"]), helper.make_node("Tanh", ["z"], ["action"])], "g",
+        [helper.make_tensor_value_info("state", dtype, input_shape)],
+        [helper.make_tensor_value_info("action", dtype, output_shape)],
+        [numpy_helper.from_array(weights, "W")])
+    model = helper.make_model(graph, opset_imports=[helper.make_opsetid("", 17)])
+    model.ir_version = 8
+    if formatted:
+        model.metadata_props.add(key="autoscoop_format", value="autoscoop-onnx-policy/1")
+    onnx.save(model, str(path))
+    return path
+
+
+def _sidecar_text(folder: Path, text: str) -> Path:
+    weights = _actor_files(folder)
+    weights.with_suffix(".json").write_text(text)
+    return weights
+
+
+HOSTILE_POLICIES: dict[str, tuple[Callable[[Path], Path], str]] = {
+    "huge-layers": (lambda d: _actor_files(d, layers=[2_000_000_000]), "'layers'"),
+    "many-layers": (lambda d: _actor_files(d, layers=[8] * 1000), "'layers'"),
+    "other-layers": (lambda d: _actor_files(d, layers=[100, 80, 61]), "do not fit"),
+    "bool-layers": (lambda d: _actor_files(d, layers=[True, 80, 60]), "'layers'"),
+    "truncated-weights": (lambda d: _actor_files(d, (SHIPPED / "default.safetensors").read_bytes()[:5000]),
+                          "safetensors"),
+    "garbage-weights": (lambda d: _actor_files(d, bytes(range(256)) * 8), "safetensors"),
+    "empty-weights": (lambda d: _actor_files(d, b""), "safetensors"),
+    "header-claims-huge": (lambda d: _actor_files(d, _safetensors_claiming([2_000_000_000, 12])), "safetensors"),
+    "wrong-hash": (lambda d: _actor_files(d, sha256="0" * 64), "SHA-256"),
+    "huge-hash": (lambda d: _actor_files(d, sha256="f" * 50_000), "SHA-256"),
+    "other-format": (lambda d: _actor_files(d, format="x" * 5000), "format"),
+    "bad-state-frame": (lambda d: _actor_files(d, state_frame="upside-down"), "state_frame"),
+    "sidecar-not-json": (lambda d: _sidecar_text(d, "{not json"), "not valid JSON"),
+    "sidecar-list": (lambda d: _sidecar_text(d, "[1, 2]"), "JSON object"),
+    "sidecar-deep": (lambda d: _sidecar_text(d, "[" * 100_000 + "]" * 100_000), "policy sidecar"),
+    "sidecar-oversized": (lambda d: _sidecar_text(d, json.dumps({"pad": "x" * 200_000})), "larger than"),
+    "onnx-float64": (lambda d: _onnx_file(d / "p.onnx", 11, ["batch", 12], ["batch", 3]), "float32"),
+    "onnx-rank1": (lambda d: _onnx_file(d / "p.onnx", 1, [12], [3]), "(batch, 12)"),
+    "onnx-width": (lambda d: _onnx_file(d / "p.onnx", 1, ["batch", 13], ["batch", 3]), "ONNX policy"),
+    "onnx-output-rank1": (lambda d: _onnx_file(d / "p.onnx", 1, ["batch", 12], [3]), "output"),
+    "onnx-unformatted": (lambda d: _onnx_file(d / "p.onnx", 1, ["batch", 12], ["batch", 3], formatted=False),
+                         "autoscoop_format"),
+    "onnx-garbage": (lambda d: (d / "p.onnx").write_bytes(b"\x08\x07garbage" * 50) and d / "p.onnx", "ONNX policy"),
+}
+
+
+def _policy_case(command: str, kind: str) -> Case:
+    make, expected = HOSTILE_POLICIES[kind]
+
+    def build(tmp: Path) -> Probe:
+        folder = tmp / "pol"
+        folder.mkdir()
+        policy = make(folder)
+        if kind.startswith("onnx") and command == "export":
+            return Probe(POLICY_COMMANDS[command](policy, tmp), [str(policy)], keep=[policy], absent=[tmp / "out.onnx"])
+        return Probe(POLICY_COMMANDS[command](policy, tmp), [str(policy.with_suffix("")), expected],
+                     keep=sorted(folder.iterdir()), absent=[tmp / "out.onnx"])
+    return Case(f"policy-{command}-{kind}", build)
+
+
+CASES += [_policy_case(command, kind) for command in ("eval", "export", "ros-check") for kind in HOSTILE_POLICIES]
 
 
 @pytest.mark.parametrize("case", CASES, ids=str)

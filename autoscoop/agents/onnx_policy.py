@@ -12,12 +12,21 @@ from pathlib import Path
 
 import numpy as np
 
+from autoscoop.core.safe_files import quote
 from autoscoop.core.state import ACTION_NAMES, ACTION_SIZE, STATE_NAMES, STATE_SIZE, recorded_state_frame
 
 ONNX_FORMAT = "autoscoop-onnx-policy/1"
 """Value of the ``autoscoop_format`` metadata entry of an exported policy."""
+MAX_ONNX_BYTES = 64 << 20
+"""cap of an ONNX policy file, bytes (the paper's actor is about 60 KB)."""
 INPUT_NAME = "state"
 OUTPUT_NAME = "action"
+
+
+def _is_batch_of(args: list, name: str, width: int) -> bool:
+    """Whether onnxruntime's inputs or outputs are exactly one float32 tensor ``name`` of shape (batch, width)."""
+    return (len(args) == 1 and args[0].name == name and args[0].type == "tensor(float)"
+            and len(args[0].shape) == 2 and args[0].shape[1] == width)
 
 
 class OnnxPolicy:
@@ -37,6 +46,8 @@ class OnnxPolicy:
         self.path = Path(path)
         if not self.path.is_file():
             raise ValueError(f"ONNX policy {self.path}: no such file")
+        if self.path.stat().st_size > MAX_ONNX_BYTES:
+            raise ValueError(f"ONNX policy {self.path}: larger than {MAX_ONNX_BYTES} bytes; not an actor autoscoop exports")
         options = ort.SessionOptions()
         options.intra_op_num_threads = threads
         options.inter_op_num_threads = 1
@@ -51,14 +62,27 @@ class OnnxPolicy:
                              f"is {self.metadata.get('autoscoop_format')!r}, expected {ONNX_FORMAT!r}); "
                              "write it with `autoscoop export --onnx`")
         inputs, outputs = self.session.get_inputs(), self.session.get_outputs()
-        if [i.name for i in inputs] != [INPUT_NAME] or inputs[0].shape[-1] != STATE_SIZE:
-            raise ValueError(f"ONNX policy {self.path}: expected one input {INPUT_NAME!r} of {STATE_SIZE} numbers "
-                             f"({', '.join(STATE_NAMES)}), got {[(i.name, i.shape) for i in inputs]}")
-        if [o.name for o in outputs] != [OUTPUT_NAME] or outputs[0].shape[-1] != ACTION_SIZE:
-            raise ValueError(f"ONNX policy {self.path}: expected one output {OUTPUT_NAME!r} of {ACTION_SIZE} numbers "
-                             f"({', '.join(ACTION_NAMES)}), got {[(o.name, o.shape) for o in outputs]}")
+        if not _is_batch_of(inputs, INPUT_NAME, STATE_SIZE):
+            raise ValueError(f"ONNX policy {self.path}: expected one float32 input {INPUT_NAME!r} of shape "
+                             f"(batch, {STATE_SIZE}) ({', '.join(STATE_NAMES)}), got "
+                             f"{quote([(i.name, i.type, i.shape) for i in inputs])}")
+        if not _is_batch_of(outputs, OUTPUT_NAME, ACTION_SIZE):
+            raise ValueError(f"ONNX policy {self.path}: expected one float32 output {OUTPUT_NAME!r} of shape "
+                             f"(batch, {ACTION_SIZE}) ({', '.join(ACTION_NAMES)}), got "
+                             f"{quote([(o.name, o.type, o.shape) for o in outputs])}")
         self.name = self.metadata.get("policy_name") or self.path.stem
         self.state_frame = recorded_state_frame(self.metadata, f"ONNX policy {self.path}")
+        self._check_one_step()
+
+    def _check_one_step(self) -> None:
+        """Run the zero state once: a graph that fails or answers another shape fails now, not at the first step."""
+        try:
+            action = np.asarray(self.act(np.zeros(STATE_SIZE, dtype=np.float32)))
+        except Exception as error:  # onnxruntime raises its own exception types
+            raise ValueError(f"ONNX policy {self.path}: fails on a zero state ({quote(str(error))})") from None
+        if action.shape != (ACTION_SIZE,) or not np.isfinite(action).all():
+            raise ValueError(f"ONNX policy {self.path}: answers a zero state with {quote(action.tolist())}, expected "
+                             f"{ACTION_SIZE} finite numbers")
 
     def reset(self) -> None:
         """Nothing to forget: the actor is a function of the state."""

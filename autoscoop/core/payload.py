@@ -47,6 +47,7 @@ import numpy as np
 import yaml
 
 from autoscoop.core import kinematics
+from autoscoop.core.safe_files import quote, read_yaml, write_text_atomically
 
 GRAVITY_MPS2 = 9.81
 """Standard gravity (MuJoCo's default), m/s^2."""
@@ -265,6 +266,10 @@ def payload_force(lift_rad: float, tilt_rad: float, torques_nm: np.ndarray, poin
 
 
 # ------------------------------------------------------------------------- calibration and estimators
+MAX_CALIBRATION_BYTES = 64 << 10
+"""cap of a calibration file, bytes (one is about 1 KB)."""
+
+
 @dataclass(frozen=True)
 class PayloadCalibration:
     """What the torque estimators need beyond the link masses; written by ``autoscoop payload calibrate``.
@@ -310,22 +315,30 @@ class PayloadCalibration:
         data["payload_com_in_bucket_m"] = [float(v) for v in self.payload_com_in_bucket_m]
         header = ("# autoscoop payload calibration: torque offsets (N*m) and the payload's centre of mass in the\n"
                   "# bucket frame (x to the cutting edge, z to the mouth; m). See autoscoop/core/payload.py.\n")
-        path.write_text(header + yaml.safe_dump(data, sort_keys=False))
+        write_text_atomically(path, header + yaml.safe_dump(data, sort_keys=False))
         return path
 
     @classmethod
     def load(cls, path: str | Path) -> PayloadCalibration:
-        """Read a calibration written by :meth:`save`; unknown keys are an error."""
-        data = yaml.safe_load(Path(path).read_text()) or {}
+        """Read a calibration written by :meth:`save` (within bounds: :func:`autoscoop.core.safe_files.read_yaml`).
+
+        Raises:
+            ValueError: the file is missing, too large, not YAML, not a calibration, or holds an unknown key or a
+                value out of range (the message names the file).
+        """
+        data = read_yaml(path, "calibration", limit=MAX_CALIBRATION_BYTES) or {}
         if not isinstance(data, dict) or data.pop("format", None) != CALIBRATION_FORMAT:
             raise ValueError(f"{path}: not an autoscoop payload calibration (expected format: {CALIBRATION_FORMAT})")
         known = {"lift_offset_nm", "tilt_offset_nm", "payload_com_in_bucket_m", "gravity_mps2", "fit"}
         unknown = set(data) - known
         if unknown:
             raise ValueError(f"{path}: unknown calibration key(s) {sorted(unknown)}; known: {sorted(known)}")
-        if "payload_com_in_bucket_m" in data:
-            data["payload_com_in_bucket_m"] = tuple(data["payload_com_in_bucket_m"])
-        return cls(**data)
+        try:
+            if "payload_com_in_bucket_m" in data:
+                data["payload_com_in_bucket_m"] = tuple(data["payload_com_in_bucket_m"])
+            return cls(**data)
+        except (TypeError, ValueError) as error:
+            raise ValueError(f"calibration {path}: {quote(str(error), 300)}") from None
 
 
 def _payload_torques(lift_rad, tilt_rad, lift_torque_nm, tilt_torque_nm, calibration, chassis_pitch_rad):

@@ -11,6 +11,7 @@ beyond torch and onnx.
 from __future__ import annotations
 
 import copy
+import io
 import time
 import warnings
 from pathlib import Path
@@ -19,6 +20,7 @@ from typing import Any
 import numpy as np
 
 from autoscoop.agents.onnx_policy import INPUT_NAME, ONNX_FORMAT, OUTPUT_NAME, OnnxPolicy
+from autoscoop.core.safe_files import write_bytes_atomically
 from autoscoop.core.state import ACTION_NAMES, STATE_NAMES, STATE_SIZE
 from autoscoop.core.version import __version__
 
@@ -47,15 +49,15 @@ def export_onnx(actor: Any, path: str | Path, metadata: dict[str, Any] | None = 
     import torch  # noqa: PLC0415
 
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
     module = copy.deepcopy(actor).to("cpu").float().eval()
     example = torch.zeros(1, STATE_SIZE, dtype=torch.float32)
+    buffer = io.BytesIO()
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", DeprecationWarning)  # the TorchScript exporter's notice
-        torch.onnx.export(module, (example,), str(path), input_names=[INPUT_NAME], output_names=[OUTPUT_NAME],
+        torch.onnx.export(module, (example,), buffer, input_names=[INPUT_NAME], output_names=[OUTPUT_NAME],
                           dynamic_axes={INPUT_NAME: {0: "batch"}, OUTPUT_NAME: {0: "batch"}},
                           opset_version=OPSET, dynamo=False)
-    model = onnx.load(str(path))
+    model = onnx.load_from_string(buffer.getvalue())
     entries = {"autoscoop_format": ONNX_FORMAT, "autoscoop_version": __version__,
                "state_names": ",".join(STATE_NAMES), "action_names": ",".join(ACTION_NAMES),
                "input": f"{INPUT_NAME}: raw state (batch, {STATE_SIZE}) float32, autoscoop.core.state order",
@@ -65,7 +67,7 @@ def export_onnx(actor: Any, path: str | Path, metadata: dict[str, Any] | None = 
     for key, value in entries.items():
         model.metadata_props.add(key=key, value=value)
     onnx.checker.check_model(model)
-    onnx.save(model, str(path))
+    write_bytes_atomically(path, model.SerializeToString())  # a full disk leaves no partial .onnx
     return path
 
 
@@ -149,6 +151,9 @@ def exportable_actor(policy: Any) -> Any:
 
     actor = getattr(policy, "actor", None)
     if not isinstance(actor, torch.nn.Module):
-        raise ValueError(f"policy {getattr(policy, 'name', policy)!r} has no neural network to export (the heuristic "
-                         "is a script); export a trained policy: default, a .safetensors file or a run directory")
+        why = ("it is already an ONNX file" if isinstance(policy, OnnxPolicy) else
+               "a Stable-Baselines3 model; export its run's policy.safetensors" if hasattr(policy, "model") else
+               "the heuristic is a script")
+        raise ValueError(f"policy {getattr(policy, 'name', policy)!r} has no torch actor to export ({why}); export a "
+                         "trained policy: default, a .safetensors file or a run directory")
     return actor

@@ -10,6 +10,7 @@ the same way.
 from __future__ import annotations
 
 import json
+import re
 import zipfile
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -17,6 +18,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from autoscoop.core.safe_files import atomic_output, quote
 from autoscoop.core.version import __version__
 
 if TYPE_CHECKING:
@@ -91,30 +93,130 @@ class EpisodeRecord:
         return len(self.steps["time_s"])
 
     def save(self, path: str | Path) -> Path:
-        """Write the record as a compressed ``.npz``."""
+        """Write the record as a compressed ``.npz`` (atomically: a failed write leaves no half file)."""
         path = Path(path)
-        path.parent.mkdir(parents=True, exist_ok=True)
-        np.savez_compressed(path, meta=np.array(json.dumps(self.meta, default=_json_default)), **self.arrays())
+        with atomic_output(path) as tmp:
+            np.savez_compressed(tmp, meta=np.array(json.dumps(self.meta, default=_json_default)), **self.arrays())
         return path
 
 
+MAX_RECORD_BYTES = 64 << 20
+"""cap of a record file, bytes (an 8 s episode is about 30 KB)."""
+MAX_RECORD_ARRAY_BYTES = 256 << 20
+"""cap of a record's arrays once decompressed, bytes (refused before decompressing)."""
+ROBOT_SOURCE = "ros controller"
+"""``meta["source"]`` of the robot's records, whose rewards, masses and some measurements may be unknown (NaN)."""
+UNKNOWN_ON_ROBOT = ("reward", "reward_progress", "reward_mass", "particles_in_bucket", "mass_in_bucket_kg",
+                    "lift_rad", "tilt_rad", "lift_torque_nm", "tilt_torque_nm")
+"""fields a robot's record may hold NaN in (not measured there); ``tip_world_m`` may be NaN in any record."""
+STEP_WIDTHS = {"state": 12, "action": 3, "tip_world_m": 3}
+"""the fields with several numbers per step; the others hold one."""
+
+
 def load_record(path: str | Path) -> EpisodeRecord:
-    """Read a record written by :meth:`EpisodeRecord.save` (no pickle is ever loaded)."""
+    """Read a record written by :meth:`EpisodeRecord.save` (no pickle is ever loaded), checking it first:
+    its size (before decompressing), metadata, version, and arrays (one row per step, the same number of
+    steps in each, finite numbers where a value is always known).
+
+    Raises:
+        ValueError: the file is missing, too large, not a record, or fails a check (the message names the file
+            and the field).
+    """
     path = Path(path)
+    _check_record_size(path)
     try:
         with np.load(path, allow_pickle=False) as data:
             missing = set(STEP_FIELDS) - set(data.files)
             if missing:
                 raise ValueError(f"{path}: not an autoscoop episode record (missing {sorted(missing)})")
-            record = EpisodeRecord(meta=json.loads(str(data["meta"])))
-            record.steps = {name: data[name].tolist() for name in STEP_FIELDS}
+            meta = json.loads(str(data["meta"]))
+            arrays = {name: data[name] for name in STEP_FIELDS}
     except ValueError as error:  # numpy's "pickled data" refusal, bad JSON metadata, our own message
         raise ValueError(str(error) if str(path) in str(error) else
-                         f"{path}: not a readable autoscoop episode record ({error})") from error
-    except (OSError, EOFError, KeyError, zipfile.BadZipFile) as error:  # missing, truncated, garbage
+                         f"{path}: not a readable autoscoop episode record ({quote(str(error))})") from None
+    except (OSError, EOFError, KeyError, zipfile.BadZipFile, RecursionError) as error:  # missing, truncated, garbage
         raise ValueError(f"{path}: not a readable autoscoop episode record "
-                         f"({type(error).__name__}: {error})") from error
+                         f"({type(error).__name__}: {quote(str(error))})") from None
+    check_record_meta(meta, path)
+    check_record_arrays(arrays, path, robot=meta.get("source") == ROBOT_SOURCE)
+    record = EpisodeRecord(meta=meta)
+    record.steps = {name: arrays[name].tolist() for name in STEP_FIELDS}
     return record
+
+
+def _check_record_size(path: Path) -> None:
+    try:
+        size = path.stat().st_size
+        if size > MAX_RECORD_BYTES:
+            raise ValueError(f"{path}: larger than {MAX_RECORD_BYTES} bytes; not an episode record autoscoop writes")
+        with zipfile.ZipFile(path) as archive:
+            unpacked = sum(info.file_size for info in archive.infolist())
+    except (OSError, zipfile.BadZipFile) as error:
+        raise ValueError(f"{path}: not a readable autoscoop episode record ({type(error).__name__}: "
+                         f"{quote(str(error))})") from None
+    if unpacked > MAX_RECORD_ARRAY_BYTES:
+        raise ValueError(f"{path}: its arrays would take {unpacked} bytes once decompressed (more than "
+                         f"{MAX_RECORD_ARRAY_BYTES}); refused before decompressing")
+
+
+def check_record_meta(meta: Any, path: Path) -> None:
+    """A record's metadata: a JSON object, written by this autoscoop's major (0.x: minor) version or an older one.
+
+    Raises:
+        ValueError: naming the file and the field.
+    """
+    if not isinstance(meta, dict):
+        raise ValueError(f"{path}: field meta must be a JSON object, got {quote(meta)}")
+    written = meta.get("autoscoop_version")
+    if written is None:
+        return
+    found, ours = _release(written), _release(__version__)
+    if found is None:
+        raise ValueError(f"{path}: field meta.autoscoop_version {quote(written)} is not a version")
+    if ours is not None and found > ours:
+        raise ValueError(f"{path}: written by autoscoop {quote(written)}, newer than this one ({__version__}); "
+                         "its format may differ: read it with that version or newer")
+
+
+def _release(text: Any) -> tuple[int, ...] | None:
+    """The compatibility part of a version: (major,) from 1.0 on, (0, minor) before; ``None`` if not a version."""
+    match = re.match(r"(\d+)\.(\d+)", text) if isinstance(text, str) else None
+    if match is None:
+        return None
+    major, minor = int(match[1]), int(match[2])
+    return (major,) if major else (0, minor)
+
+
+def check_record_arrays(arrays: dict[str, np.ndarray], path: Path, robot: bool = False) -> None:
+    """A record's arrays: numbers, at least one step, the same number of steps in each, the widths of
+    :data:`STEP_WIDTHS`, no infinity, and NaN only where a value may be unknown (``tip_world_m``; on the robot,
+    :data:`UNKNOWN_ON_ROBOT`).
+
+    Raises:
+        ValueError: naming the file and the first field that fails.
+    """
+    steps = None
+    for name in STEP_FIELDS:
+        array = arrays[name]
+        if array.dtype.kind not in "biuf":
+            raise ValueError(f"{path}: field {name} holds {array.dtype} values, not numbers")
+        width = STEP_WIDTHS.get(name)
+        if array.ndim == 0 or array.shape != ((len(array),) if width is None else (len(array), width)):
+            expected = "one number per step" if width is None else f"{width} numbers per step"
+            raise ValueError(f"{path}: field {name} has shape {array.shape}, expected {expected}")
+        if steps is None:
+            steps = len(array)
+            if steps == 0:
+                raise ValueError(f"{path}: field {name} is empty; a record holds at least one step")
+        elif len(array) != steps:
+            raise ValueError(f"{path}: field {name} has {len(array)} steps, {next(iter(STEP_FIELDS))} has {steps}; "
+                             "a record's fields must have one row per step")
+        values = array.astype(float)
+        if np.isinf(values).any():
+            raise ValueError(f"{path}: field {name} holds an infinite value")
+        may_be_unknown = name == "tip_world_m" or (robot and name in UNKNOWN_ON_ROBOT)
+        if not may_be_unknown and np.isnan(values).any():
+            raise ValueError(f"{path}: field {name} holds NaN (not a number) where a value is always known")
 
 
 def _json_default(value: Any) -> Any:
