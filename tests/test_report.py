@@ -7,10 +7,11 @@ from autoscoop.agents.loading import heuristic_for
 from autoscoop.cli import main
 from autoscoop.core.config import ScoopConfig
 from autoscoop.core.phases import phase_now, phase_spans
+from autoscoop.envs.definitions import definition_lines
 from autoscoop.evaluation.evaluate import evaluate, summarize
 from autoscoop.report.data import group_episodes, load_episodes, summarize_episodes
 from autoscoop.report.figures import plot_bucket_torque, plot_by_angle, plot_cycle
-from autoscoop.report.markdown import results_table, write_report
+from autoscoop.report.markdown import REPORT_TERMS, results_table, write_report
 
 PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
 
@@ -76,6 +77,8 @@ def test_report_command_redraws_without_simulating(records, tmp_path, monkeypatc
     assert main(["report", str(root), "--out", str(tmp_path)]) == 0
     text = (tmp_path / "report.md").read_text()
     assert "## Results (paper Table 2)" in text and "| heuristic | 40° | 1 |" in text
+    for line in definition_lines(REPORT_TERMS):  # success is reached loaded, as the code counts it
+        assert line in text
     for name in ("fig13_tip_by_angle.png", "fig9_cycle.png", "fig11_bucket_torque.png"):
         assert f"]({name})" in text and is_png(tmp_path / name)
     assert "wrote" in capsys.readouterr().out

@@ -66,7 +66,7 @@ def run(args: argparse.Namespace) -> int:
             results = evaluate(policy, config, args.episodes, seed=args.seed, records_dir=folder,
                                records_meta={"policy": spec, "source": "compare"})
             summary = summarize(results, config, spec)
-            print(format_table(summary) + "\n")
+            print(format_table(summary, definitions=False) + "\n")  # report.md defines the terms
             summaries.append({k: v for k, v in summary.items() if k != "config"})
             record_dirs.append(folder)
         evaluated.append(spec)

@@ -1,5 +1,5 @@
 """``autoscoop stress``: run a controller over the stress cases (other piles, materials, start, sensing,
-a randomised world), the same seeds in each, and say plainly which of the acceptance's thresholds hold."""
+a randomised world), the same seeds in each, and say plainly which of the suite's thresholds hold."""
 
 from __future__ import annotations
 
@@ -44,6 +44,8 @@ def run(args: argparse.Namespace) -> int:
     rows = run_stress(args.policy, config, args.episodes, seed=args.seed, cases=cases, workers=args.workers,
                       trust=args.trust)
     wall_s = time.perf_counter() - start
+    print(stress_table(rows))  # first: the measurements are shown even if writing the files fails (a full disk)
+    print(verdict(rows))
     seeds = list(range(args.seed, args.seed + args.episodes))
     write_json(args.json, {
         "policy": args.policy, "episodes": args.episodes, "seeds": seeds, "workers": args.workers,
@@ -52,7 +54,5 @@ def run(args: argparse.Namespace) -> int:
     intro = (f"`{args.policy}`, {args.episodes} episodes per case (seeds {seeds[0]}–{seeds[-1]}), "
              f"{wall_s:.0f} s wall time on {os.cpu_count()} CPUs with {args.workers} worker(s).")
     files = write_stress_report(rows, args.out, title=f"Stress suite: {args.policy}", intro=intro)
-    print(stress_table(rows))
-    print(verdict(rows))
     print(f"wrote {args.json}, {files.markdown} and {files.figure}")
     return 0

@@ -28,7 +28,7 @@ OPSET = 17
 """ONNX opset: 17 has LayerNormalization as one operator."""
 PARITY_TOLERANCE = 5e-5
 """Largest allowed |onnx - torch| of any action component. Each runtime rounds in float32: for the
-shipped actor of 2026-12-02 torch's own float32 actions are up to 1.2e-5 from the same network in
+shipped ``default`` actor torch's own float32 actions are up to 1.2e-5 from the same network in
 float64 (and onnxruntime's 1.2e-5), so two float32 runtimes can differ by about twice that; 5e-5 of an
 action moves a target by at most 2e-5 rad or 1e-5 m/s (action x range), far below what the
 servos resolve. ``check_parity`` reports both runtimes' distance from float64 beside it."""

@@ -4,12 +4,7 @@ Evaluation, the episode recorder, the benchmarks, the scripted demonstrations, t
 side (the simulator node and the controller's records) all build it here, from the environment's
 ``info`` (:meth:`EpisodeOutcome.from_info`), so that a number means the same everywhere.
 
-Definitions: fill factor = mass in the bucket at the end / rated load; volumetric fill = the
-particles' solid volume / the bucket's heaped capacity; reached = the tip reached the terminal point
-in time; success = reached loaded: with the fill factor or the volumetric fill, whichever is
-higher, at least ``scoop.min_fill``; overload = fill factor above ``scoop.overload_fill``; cycle time
-= seconds from the start to success (``None`` when the episode did not succeed); spillage =
-particles that were in the bucket and are not at the end.
+The terms are defined in :mod:`autoscoop.envs.definitions`.
 """
 
 from __future__ import annotations

@@ -1,11 +1,7 @@
 """Run a controller for N episodes and measure it the way earth-moving people do.
 
-Definitions (docs/definitions.md): fill factor = mass in the bucket at the end / rated load; volumetric
-fill = the particles' solid volume / the bucket's capacity; cycle time = seconds from the start to
-success (failed episodes are reported apart); success = the tip reached the terminal point in time
-loaded (fill factor or volumetric fill, whichever is higher, at least ``scoop.min_fill``); reached =
-the terminal point reached, loaded or not; overload = fill factor above ``scoop.overload_fill``;
-spillage = particles that were in the bucket and are not at the end.
+The terms (fill factor, volumetric fill, reached, success, cycle time, overload, spillage) are those of
+:mod:`autoscoop.envs.definitions`, which the table prints below its rows.
 """
 
 from __future__ import annotations
@@ -20,6 +16,7 @@ from tqdm import tqdm
 from autoscoop.core.config import ScoopConfig
 from autoscoop.core.policy import Policy
 from autoscoop.core.version import __version__
+from autoscoop.envs.definitions import definition_lines
 from autoscoop.envs.outcome import EpisodeOutcome
 from autoscoop.envs.rollout import rollout
 from autoscoop.envs.scoop import make_scoop_env
@@ -67,8 +64,9 @@ def summarize(results: list[EpisodeOutcome], config: ScoopConfig, policy_name: s
     }
 
 
-def format_table(summary: dict[str, Any]) -> str:
-    """The summary as a small text table (mean +- std)."""
+def format_table(summary: dict[str, Any], definitions: bool = True) -> str:
+    """The summary as a small text table (mean +- std), and below it, with ``definitions``, what its terms mean
+    (:func:`autoscoop.envs.definitions.definition_lines`)."""
     def pm(key: str, digits: int = 3) -> str:
         mean, std = summary[f"{key}_mean"], summary[f"{key}_std"]
         return "n/a" if math.isnan(mean) else f"{mean:.{digits}f} +- {std:.{digits}f}"
@@ -88,4 +86,5 @@ def format_table(summary: dict[str, Any]) -> str:
         ("physics errors", str(summary["physics_errors"])),
     ]
     width = max(len(name) for name, _ in rows)
-    return "\n".join(f"{name:<{width}}  {value}" for name, value in rows)
+    table = "\n".join(f"{name:<{width}}  {value}" for name, value in rows)
+    return table + "\n\n" + "\n".join(definition_lines(markdown=False)) if definitions else table

@@ -6,7 +6,7 @@ worlds at the edges of the randomised ranges (light and heavy earth, the steepes
 validation suite runs the best few snapshots by that score over every stress case of
 :mod:`autoscoop.evaluation.stress`, ``episodes`` each, on seeds from ``seed`` (20000 in the recipes:
 apart from the periodic evaluation's 10000 on and from the seeds 0-99 that reports use), and ranks them
-by how far they fall short of the acceptance's thresholds, summed over the cases
+by how far they fall short of the stress suite's thresholds, summed over the cases
 (:func:`total_shortfall`); the mean delivered fill breaks ties.
 """
 

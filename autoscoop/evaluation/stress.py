@@ -1,16 +1,14 @@
-"""The stress suite: one controller over the worlds and sensing it must hold on (issue 13's acceptance).
+"""The stress suite: one controller over the worlds and sensing it must hold on.
 
 Each :class:`StressCase` is a set of config overrides applied on top of the user's config, with the
-thresholds the acceptance sets for it: the nominal world (32° pile) must scoop well (fill factor
+thresholds it must hold: the nominal world (32° pile) must scoop well (fill factor
 >= 0.75, success >= 0.97, cycle time <= 5.0 s); every other world must still scoop (success >= 0.90,
 volumetric fill >= 0.60, overload rate <= 0.05). :func:`run_stress` runs every chosen case for the same
 seeds ``seed .. seed + episodes - 1`` and returns one :class:`StressRow` per case with its statistics
 (:func:`autoscoop.evaluation.summary.outcome_statistics`), each threshold's pass or fail, and the
 episodes' outcomes. Cases can run in parallel worker processes; the numbers are the same as serial.
 
-Definitions (docs/definitions.md): fill factor = mass in the bucket / rated load; volumetric fill =
-particles' solid volume / bucket capacity; success = reached the terminal point loaded (``scoop.min_fill``);
-overload = fill factor above ``scoop.overload_fill``; cycle time = seconds to success (successes only).
+The terms are those of :mod:`autoscoop.envs.definitions`.
 """
 
 from __future__ import annotations
@@ -125,7 +123,7 @@ CASES: tuple[StressCase, ...] = (
     _stress("delay_noise", "sensor delay 0.05 s + noise", SENSOR_LINK),
     _stress("randomized", "randomised world (robot preset)", {"randomize.preset": "robot"}),
 )
-"""The acceptance's cases, in its order (issue 13): nominal 32°; 25° and 40° piles; 0.2 and 0.4 kg
+"""The suite's cases, in order: nominal 32°; 25° and 40° piles; 0.2 and 0.4 kg
 particles; particle friction 0.6 and 1.3; a 0.3 m start gap; the mass from the joint torques; sensor
 delay 0.05 s with noise; the ``robot`` randomised world."""
 

@@ -13,9 +13,13 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from autoscoop.core.config import EnvConfig, PileConfig
+from autoscoop.core.safe_files import write_text_atomically
+from autoscoop.envs.definitions import definition_lines
 from autoscoop.report.data import MANUAL, Episode, group_episodes, summarize_episodes
 from autoscoop.report.figures import plot_bucket_torque, plot_by_angle, plot_cycle
 
+REPORT_TERMS = ("fill factor", "volumetric fill", "reached", "success", "cycle time", "spillage")
+"""the terms the report defines (:mod:`autoscoop.envs.definitions`): those of its table and the ones they use."""
 PAPER_ROWS = (
     # controller, where, mass kg, particles, fill factor, cycle time s
     ("paper: DRL controller", "simulation", "4.4 ± 0.9", "14 ± 3", "0.65", "5"),
@@ -122,10 +126,8 @@ def write_report(episodes: Sequence[Episode], out_dir: str | Path, title: str = 
         f"- {len(episodes)} episode records; controllers: {', '.join(controllers)}; policy: {', '.join(sources)}",
         f"- piles: {', '.join(f'{a:g}°' for a in angles)}, "
         f"{episodes[0].meta.get('pile', {}).get('n_particles', '?')} particles; autoscoop {', '.join(versions)}",
-        "- mean ± standard deviation over episodes; cycle time over successful episodes only; "
-        "success = the tip reached the terminal point within the time limit "
-        f"({DEFAULT_TIME_LIMIT_S:g} s unless noted); "
-        "spillage = particles that were in the bucket at some moment and are not at the end",
+        "- mean ± standard deviation over episodes; the table notes a time limit other than "
+        f"{DEFAULT_TIME_LIMIT_S:g} s",
     ]
     if command:
         provenance.append(f"- redraw from the records, without simulating: `{command}`")
@@ -138,7 +140,7 @@ def write_report(episodes: Sequence[Episode], out_dir: str | Path, title: str = 
     text.append("Rows in italics are the paper's (Azulay and Shapiro, IEEE Access 2021); its simulation used "
                 "one pile, its robot three (one of them 32°).\n")
     text.append("\n".join(provenance) + "\n")
+    text.append("Definitions:\n\n" + "\n".join(definition_lines(REPORT_TERMS)) + "\n")
     text.extend(sections)
-    files.markdown.parent.mkdir(parents=True, exist_ok=True)
-    files.markdown.write_text("\n".join(text))
+    write_text_atomically(files.markdown, "\n".join(text))
     return files

@@ -18,6 +18,8 @@ from matplotlib.cm import ScalarMappable
 from matplotlib.colors import ListedColormap, Normalize, to_rgb
 from matplotlib.figure import Figure
 
+from autoscoop.core.safe_files import atomic_output, write_text_atomically
+from autoscoop.envs.definitions import definition_lines
 from autoscoop.evaluation.stress import (
     METRIC_NAMES,
     NOMINAL_THRESHOLDS,
@@ -33,6 +35,8 @@ MARGIN_SCALES = {"fill_factor_mean": 0.25, "volumetric_fill_mean": 0.25, "succes
                  "reached_rate": 0.25, "cycle_time_mean": 2.0, "overload_rate": 0.05}
 """The margin to a threshold that colours a cell fully (in the metric's unit: fractions, cycle time in s);
 an overload rate cannot do better than 0 against 0.05, so 0 is full green."""
+STRESS_TERMS = ("fill factor", "volumetric fill", "reached", "success", "cycle time", "overload")
+"""the terms ``stress.md`` defines (:mod:`autoscoop.envs.definitions`): those of its table."""
 SPREAD_METRICS = ("fill_factor_mean", "volumetric_fill_mean", "cycle_time_mean")
 """Metrics shown as mean ± std (the others are rates)."""
 HOLDS_LIGHT, HOLDS_DARK = "#d9f0d3", "#1b7837"
@@ -164,8 +168,8 @@ def plot_stress(rows: Sequence[StressRow], path: str | Path, title: str = "stres
                   "full scale 0.25 for fills and rates, 0.05 for overload, 2 s for cycle time; "
                   "grey: no threshold on it in that case", fontsize=8, color="0.3")
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=DPI)
+    with atomic_output(path) as tmp:  # a failed write leaves the previous figure
+        fig.savefig(tmp, dpi=DPI)
     return path
 
 
@@ -184,8 +188,9 @@ def write_stress_report(rows: Sequence[StressRow], out_dir: str | Path, title: s
     out_dir = Path(out_dir)
     held = sum(row.passed for row in rows)
     figure = plot_stress(rows, out_dir / "stress.png", title=f"{title}: {held} of {len(rows)} cases hold")
-    parts = [f"# {title}", intro, "Thresholds (issue 13's acceptance):", thresholds_text(), stress_table(rows),
-             verdict(rows), f"![stress heat map]({figure.name})"]
+    parts = [f"# {title}", intro, "Thresholds:", thresholds_text(), stress_table(rows),
+             verdict(rows), f"![stress heat map]({figure.name})", "Definitions:",
+             "\n".join(definition_lines(STRESS_TERMS))]
     markdown = out_dir / "stress.md"
-    markdown.write_text("\n\n".join(p for p in parts if p) + "\n")
+    write_text_atomically(markdown, "\n\n".join(p for p in parts if p) + "\n")
     return StressFiles(markdown=markdown, figure=figure)
