@@ -24,11 +24,10 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                         help="'payload': the payload mode (autoscoop.evaluation.payload_bench); without it, speed "
                              "or (with --n-envs) scaling")
     size = parser.add_argument_group("how much to measure (the modes that use each say so)")
-    size.add_argument("--episodes", type=options.NON_NEGATIVE, default=10, metavar="N",
-                       help="speed: scripted episodes per repeat, 1 or more; payload: moving scoops after the static "
-                            "holds, 0 or more (default 10)")
+    options.add_episodes_option(size, default=10, minimum=0, what="speed: scripted episodes per repeat, 1 or more; "
+                                "payload: moving scoops after the static holds, 0 or more")
     size.add_argument("--repeats", type=options.POSITIVE, default=3, metavar="N",
-                       help="speed and scaling: timed repeats, the median is reported (default 3)")
+                      help="speed and scaling: timed repeats, the median is reported (default 3)")
     scaling = parser.add_argument_group("scaling (autoscoop bench --n-envs N)")
     scaling.add_argument("--n-envs", type=options.POSITIVE, metavar="N",
                          help="measure aggregate env steps/s of N environments stepped together (SubprocVecEnv, as "
