@@ -4,7 +4,7 @@ Three measurements, one after another (never two at once: they share the cores):
 
 1. ``autoscoop bench --n-envs N``: aggregate environment steps per second with one environment
    (``DummyVecEnv``) and with N in subprocesses (``SubprocVecEnv``, as training builds them), and the ratio;
-2. ``autoscoop train --n-envs K --seed SEED --episodes E`` for K = 1 and N and each seed: the wall time
+2. ``autoscoop train --recipe paper --n-envs K --seed SEED --episodes E`` for K = 1 and N and each seed: the wall time
    (outside, around the process, seconds; and the run's own ``wall_s`` in ``run.json``) and the environment
    steps it took (``episodes.csv``), hence training's env steps per wall second;
 3. ``autoscoop eval --policy RUN_DIR --episodes 50`` (nominal world) of each run's kept policy: fill factor
@@ -53,7 +53,7 @@ def train(run_dir: Path, n_envs: int, seed: int, episodes: int, reuse: bool) -> 
     if reuse and record.exists() and json.loads(record.read_text()).get("status") == "finished":
         wall_file = run_dir.parent / f"{run_dir.name}.wall"
         return float(wall_file.read_text()) if wall_file.exists() else None
-    command = [*CLI, "train", "--n-envs", str(n_envs), "--seed", str(seed), "--episodes", str(episodes),
+    command = [*CLI, "train", "--recipe", "paper", "--n-envs", str(n_envs), "--seed", str(seed), "--episodes", str(episodes),
                "--no-progress", "--out", str(run_dir)]
     wall = timed(command, run_dir.parent / f"{run_dir.name}.train.log")
     (run_dir.parent / f"{run_dir.name}.wall").write_text(f"{wall:.1f}\n")

@@ -97,7 +97,7 @@ def main() -> int:
     for row in rows:
         t0 = time.time()
         run_dir = work / "sequential" / row["trial_id"]
-        command = [str(BIN / "autoscoop"), "train", "--episodes", str(EPISODES), "--seed", row["seed"],
+        command = [str(BIN / "autoscoop"), "train", "--recipe", "paper", "--episodes", str(EPISODES), "--seed", row["seed"],
                    "--set", f"reward.c_w={row['reward.c_w']}", "--hyper",
                    f"hyperparams.learning_rate={row['hyperparams.learning_rate']}", *TRAIN, "--out", str(run_dir)]
         subprocess.run(command, check=True, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
