@@ -24,7 +24,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument("--check-states", type=options.NON_NEGATIVE, default=10_000, metavar="N",
                         help="random states for the parity check (default 10000; 0 skips it)")
     options.add_json_option(parser, "the parity check and timings")
-    options.add_trust_option(parser, "allow a pickled SB3 zip as the policy")
+    options.add_trust_option(parser)
     options.add_config_args(parser)
     parser.set_defaults(func=run)
 

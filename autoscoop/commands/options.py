@@ -60,7 +60,7 @@ POSITIVE_SECONDS = NumberIn(1e-3, None, "s")
 
 POLICY_HELP = "heuristic, default (the shipped policy) or a policy file"
 """what ``--policy`` accepts in most commands (see :func:`autoscoop.agents.loading.load_policy`)."""
-TRUST_HELP = "allow loading a pickled SB3 zip from outside its run directory"
+TRUST_HELP = "allow an SB3 .zip as the policy: loading one unpickles it, which can run code"
 
 
 def add_policy_option(parser: argparse.ArgumentParser, default: str = "default", accepts: str = POLICY_HELP) -> None:
@@ -76,9 +76,8 @@ def add_trust_option(parser: argparse.ArgumentParser, why: str = TRUST_HELP) -> 
 def add_episodes_option(parser: argparse.ArgumentParser, default: int | None, what: str = "number of episodes",
                         minimum: int = 1) -> None:
     """``--episodes N``: a count of at least ``minimum`` (0 only where the command gives 0 a meaning)."""
-    kind = POSITIVE if minimum == 1 else NON_NEGATIVE if minimum == 0 else AtLeast(minimum)
     shown = "" if default is None else f" (default {default})"
-    parser.add_argument("--episodes", type=kind, default=default, metavar="N", help=f"{what}{shown}")
+    parser.add_argument("--episodes", type=AtLeast(minimum), default=default, metavar="N", help=f"{what}{shown}")
 
 
 def add_seed_option(parser: argparse.ArgumentParser, default: int | None = 0,

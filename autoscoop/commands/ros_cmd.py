@@ -28,7 +28,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     controller.add_argument("--record", type=Path, metavar="DIR", help="write one episode record per scoop here")
     options.add_set_option(controller, "scene/task config the policy was made for, e.g. --set pile.angle_deg=28 (labels "
                                "the records; the heuristic aims at reward.terminal_*)")
-    options.add_trust_option(controller, "allow a pickled SB3 zip as the policy")
+    options.add_trust_option(controller)
     controller.add_argument("--check", action="store_true",
                             help="check the configuration and the policy, print them, and exit without ROS")
     controller.add_argument("remap", nargs="*", type=ros_remap, metavar="NAME:=NEW",

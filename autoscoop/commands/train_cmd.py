@@ -53,7 +53,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                              "--init, --out and settings other than the recorded ones are refused)")
     parser.add_argument("--init", type=Path, metavar="RUN_DIR",
                         help="fine-tune: start from the policy of this finished run (same --algo)")
-    options.add_trust_option(parser, "let --init load a policy.zip its run.json does not vouch for (zips run pickle)")
+    options.add_trust_option(parser, "let --init start from the run's whole policy.zip (actor and critic) instead of "
+                                     "its safe actor file: loading a zip unpickles it, which can run code")
     parser.add_argument("--hyper", action="append", default=[], metavar="SECTION.KEY=VALUE",
                         help="override a setting of the algorithm's YAML, e.g. hyperparams.learning_rate=3e-4 "
                              "or noise.sigma_start=0.05 (repeatable)")
