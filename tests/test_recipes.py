@@ -84,3 +84,18 @@ def test_a_sweep_space_takes_the_registered_recipes_only():
         assert SweepSpace(recipe=name).recipe == name
     with pytest.raises(ValueError, match="recipe"):
         SweepSpace(recipe="fast")
+
+
+def test_the_training_docs_list_every_registered_recipe_with_its_base_and_episodes():
+    from autoscoop.training.settings import load_recipe
+
+    table = [line for line in (Path(__file__).resolve().parents[1] / "docs" / "training.md").read_text().splitlines()
+             if line.startswith("| `")]
+    for name in RECIPES:
+        rows = [line for line in table if line.startswith(f"| `{name}` ")]
+        assert len(rows) == 1, f"docs/training.md lists recipe {name} {len(rows)} times"
+        cells = [cell.strip() for cell in rows[0].split("|")[1:-1]]
+        base = yaml.safe_load((Path(recipes.__file__).parent / f"{name}.yaml").read_text()).get("base")
+        assert cells[1] == (f"`{base}`" if base else "the algorithm's YAML")
+        assert cells[3] == str(load_recipe("ddpg", name)["episodes"])
+        assert ("**default**" in cells[0]) == (name == SHIPPED_RECIPE)

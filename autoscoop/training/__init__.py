@@ -1,6 +1,9 @@
 """Training runs (``autoscoop train``), one job per module:
 
-* :mod:`~autoscoop.training.settings`: the algorithm's YAML (``hyperparams/ALGO.yaml``) and ``--hyper`` overrides;
+* :mod:`~autoscoop.training.recipes`: the recipes (``recipes/NAME.yaml``, inheriting through ``base``), the one
+  list the CLI, the sweep and the docs read, and the worlds registered from them;
+* :mod:`~autoscoop.training.settings`: the algorithm's YAML (``hyperparams/ALGO.yaml``) with a recipe laid over
+  it, and ``--hyper`` overrides;
 * :mod:`~autoscoop.training.factories`: the SB3 policy, the exploration noise, the vector environment;
 * :mod:`~autoscoop.training.callbacks`: the per-episode log (``episodes.csv``) and the periodic evaluation;
 * :mod:`~autoscoop.training.checkpoints`: checkpoints, safe actor files, ``run.json``, what resuming reads back;
