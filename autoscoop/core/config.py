@@ -272,7 +272,8 @@ class RewardConfig(ConfigModel):
 
     section = "reward"
     c_w: float = setting(10.0, "-", "weight c_w of the mass bonus c_w * w_t paid on reaching the terminal point", 0.0, 1000.0)
-    epsilon_m: float = setting(0.10, "m", "tolerance epsilon: the tip within it of the terminal point is success", 0.001, 0.5)
+    epsilon_m: float = setting(0.10, "m", "tolerance epsilon: the tip within it of the terminal point has reached "
+                               "it (a success when loaded: scoop.min_fill)", 0.001, 0.5)
     delta_m: float = setting(0.06, "m", "Delta: the tip within it of a particle centre is 'penetrating'", 0.001, 0.5)
     distance_scale_m: float = setting(1.0, "m", "distances are divided by it inside tanh (1 m: the paper's eq. 5)", 0.01, 10.0)
     terminal_dx_m: float = setting(0.20, "m", "terminal point x from the pile's toe (over the pile, where a scoop ends, raised clear of it)", -1.0, 1.0)
