@@ -10,14 +10,12 @@ from typing import TYPE_CHECKING
 from autoscoop.commands import options
 from autoscoop.core.config import overrides_from_yaml, parse_set_args
 from autoscoop.envs import worlds_help
-from autoscoop.training.recipes import RECIPES, SHIPPED_RECIPE, recipes_help
+from autoscoop.training.recipes import DEFAULT_EPISODES, RECIPES, SHIPPED_RECIPE, recipes_help
 
 if TYPE_CHECKING:
     from autoscoop.evaluation.selection import Ranked
     from autoscoop.training.settings import SelectionSettings
 
-DEFAULT_EPISODES = 800
-"""training episodes of a new run when ``--episodes`` is not given and its recipe names none (the paper's)."""
 DEFAULTS = {"algo": "ddpg", "recipe": SHIPPED_RECIPE, "seed": 0, "n_envs": 1, "checkpoint_every": 50, "eval_every": 50, "eval_episodes": 10}
 """a new run's settings where the options are not given (episodes: :data:`DEFAULT_EPISODES`). The options
 default to ``None`` so that ``--resume`` can tell what was given."""

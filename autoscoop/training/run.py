@@ -62,11 +62,8 @@ from autoscoop.training.checkpoints import (
 from autoscoop.training.factories import make_noise, make_policy, make_training_env, make_vec_env
 from autoscoop.training.hyper_ranges import check_training_settings
 from autoscoop.training.learning_curve import plot_learning_curve
-from autoscoop.training.recipes import SHIPPED_RECIPE
+from autoscoop.training.recipes import DEFAULT_EPISODES, SHIPPED_RECIPE
 from autoscoop.training.settings import config_at, curriculum_stages, load_recipe, with_hyper_overrides
-
-DEFAULT_EPISODES = 800
-"""training episodes of a run whose recipe and arguments name no count (the paper's)."""
 
 
 @dataclass

@@ -26,6 +26,8 @@ PAPER_RECIPE = "paper"
 """the paper's recipe: its DDPG in its world, from random weights, 800 episodes."""
 SHIPPED_RECIPE = "robot_smooth"
 """the recipe of the shipped ``default`` policy: what plain ``autoscoop train`` runs."""
+DEFAULT_EPISODES = 800
+"""training episodes of a run when neither ``--episodes`` nor its recipe names a count (the paper's)."""
 RECIPE_KEYS = ("summary", "base")
 """keys that describe a recipe file rather than set anything; they stay out of the merged settings."""
 
