@@ -93,7 +93,7 @@ def test_eval_overwrite_replaces_the_old_records(tmp_path):
     (tmp_path / "episode_00007.npz").write_bytes(b"an older run")
     assert main(["eval", "--episodes", "1", "--set", "pile.variants=1", "--records", str(tmp_path),
                  "--overwrite"]) == 0
-    assert sorted(p.name for p in tmp_path.iterdir()) == ["episode_00000.npz"]
+    assert sorted(p.name for p in tmp_path.iterdir()) == [".autoscoop.lock", "episode_00000.npz"]  # the lock stays
 
 
 def test_eval_checks_the_json_path_before_the_first_episode(tmp_path, capsys, no_episodes):

@@ -100,7 +100,7 @@ POLICY_COMMANDS: dict[str, Callable[[Path, Path], list[str]]] = {
     "ros-check": lambda policy, tmp: ["ros", "controller", "--check", "--policy", policy],
     "stress": lambda policy, tmp: ["stress", "--policy", policy, "--episodes", "1", "--cases", "nominal",
                                    "--json", tmp / "stress.json", "--out", tmp / "stress"],
-    "compare": lambda policy, tmp: ["compare", "--policies", f"heuristic,{policy}", "--episodes", "1",
+    "compare": lambda policy, tmp: ["compare", "--policies", "heuristic", policy, "--episodes", "1",
                                     "--angles", "32", "--out", tmp / "cmp"],
     "demo": lambda policy, tmp: ["demo", "--policy", policy, "--episodes", "1", "--no-video", "--out", tmp / "demo"],
 }

@@ -4,13 +4,19 @@
 from __future__ import annotations
 
 import argparse
-import json
 import math
 import os
+import sys
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
-from autoscoop.core.config import ScoopConfig, load_yaml, parse_set_args
+from filelock import FileLock, Timeout
+
+from autoscoop.core.config import ScoopConfig, load_yaml, overrides_from_yaml, parse_set_args
+from autoscoop.core.policy import state_frame_of
+from autoscoop.core.safe_files import write_json_atomically
 
 
 def check_output_file(path: Path, option: str) -> None:
@@ -51,12 +57,53 @@ def prepare_records_dir(path: Path, overwrite: bool, option: str = "--records") 
     if overwrite:
         for record in path.glob("episode_*.npz"):
             record.unlink()
-    left = sorted(entry.name for entry in path.iterdir())
+    left = sorted(entry.name for entry in path.iterdir() if entry.name != RECORDS_LOCK)
     if left:
         shown = ", ".join(left[:3]) + (", ..." if len(left) > 3 else "")
         hint = ("--overwrite removes only episode_*.npz records; move the other files away"
                 if overwrite else "use an empty or new folder, or --overwrite to replace its episode_*.npz records")
         raise ValueError(f"{option} {path}: folder is not empty ({len(left)} entries: {shown}); {hint}")
+
+
+RECORDS_LOCK = ".autoscoop.lock"
+"""the lock file a process writing a records folder holds in it (``filelock``; freed by the OS if it dies)."""
+
+
+@contextmanager
+def records_dir_lock(path: Path, option: str = "--records") -> Iterator[None]:
+    """Hold ``path/.autoscoop.lock`` (the folder created) while the block fills records folder ``path``: two
+    runs started together cannot both pass the empty-folder check and mix their episodes.
+
+    Raises:
+        ValueError: ``path`` is a file, or another process holds the lock (not waited for).
+    """
+    if path.exists() and not path.is_dir():
+        raise ValueError(f"{option} {path}: is a file, not a folder")
+    path.mkdir(parents=True, exist_ok=True)
+    lock = FileLock(path / RECORDS_LOCK, timeout=0)
+    try:
+        lock.acquire()
+    except Timeout:
+        raise ValueError(f"{option} {path}: another autoscoop process is writing records there; wait for it to "
+                         "end, or use another folder") from None
+    try:
+        yield
+    finally:
+        lock.release()
+
+
+def warn_if_frame_overridden(args: argparse.Namespace, policy: object, config: ScoopConfig) -> None:
+    """Print a warning when ``--set``/``--config`` chose ``sensor.level_with_imu`` and the policy's recorded state
+    frame overrides it (the policy runs in the frame it was trained in)."""
+    frame = state_frame_of(policy)
+    if frame is None or config.sensor.level_with_imu == (frame == "level"):
+        return
+    chosen = set(parse_set_args(getattr(args, "overrides", [])))
+    if getattr(args, "config", None):
+        chosen |= set(overrides_from_yaml(args.config))
+    if "sensor.level_with_imu" in chosen:
+        print(f"warning: sensor.level_with_imu = {str(config.sensor.level_with_imu).lower()} is overridden: the policy "
+              f"records its state frame ({frame}), and runs in it", file=sys.stderr)
 
 
 def config_from_args(args: argparse.Namespace) -> ScoopConfig:
@@ -66,9 +113,9 @@ def config_from_args(args: argparse.Namespace) -> ScoopConfig:
 
 
 def write_json(path: Path, data: dict[str, Any]) -> None:
-    """Write JSON (NaN written as null), creating the folder."""
-    path.parent.mkdir(parents=True, exist_ok=True)
-    path.write_text(json.dumps(_nan_to_none(data), indent=2) + "\n")
+    """Write JSON (NaN written as null), creating the folder; atomically: a failed write (a full disk) leaves
+    the previous file as it was."""
+    write_json_atomically(path, _nan_to_none(data))
 
 
 def _nan_to_none(value: Any) -> Any:

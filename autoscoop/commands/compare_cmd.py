@@ -17,8 +17,15 @@ import time
 from pathlib import Path
 
 from autoscoop.agents.loading import load_policy
-from autoscoop.commands import check_output_dir, check_output_file, config_from_args, options, write_json
-from autoscoop.core.config import PILE_ANGLE_RANGE_DEG
+from autoscoop.commands import (
+    check_output_dir,
+    check_output_file,
+    config_from_args,
+    options,
+    records_dir_lock,
+    write_json,
+)
+from autoscoop.core.config import PILE_ANGLE_RANGE_DEG, ScoopConfig
 from autoscoop.evaluation.evaluate import evaluate, format_table, summarize
 
 PILE_ANGLES_DEG = (25.0, 32.0, 40.0)
@@ -38,20 +45,28 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument("--manual", nargs="*", type=Path, default=None,
                         help=f"folders or files of manual episode records (default {DEFAULT_MANUAL} if it exists)")
     options.add_out_option(parser, Path("out/compare"))
+    parser.add_argument("--overwrite", action="store_true",
+                        help="replace the episode records an earlier compare left under --out (refused otherwise)")
     options.add_trust_option(parser)
     options.add_config_args(parser)
     parser.set_defaults(func=run)
 
 
 def run(args: argparse.Namespace) -> int:
+    started = time.perf_counter()
+    base = config_from_args(args)
+    check_outputs(args.out, [records_folder(args.out, spec, angle) for spec in args.policies for angle in args.angles],
+                  args.overwrite)
+    for spec in args.policies:  # a bad --policies entry fails now, not after the others' episodes
+        load_policy(spec, base, trust=args.trust)
+    with records_dir_lock(args.out, "--out"):  # one compare at a time writes --out's records
+        return _compare(args, base, started)
+
+
+def _compare(args: argparse.Namespace, base: ScoopConfig, started: float) -> int:
     from autoscoop.report.data import find_record_files, load_episodes  # noqa: PLC0415 - matplotlib when needed
     from autoscoop.report.markdown import write_report  # noqa: PLC0415
 
-    started = time.perf_counter()
-    base = config_from_args(args)
-    check_outputs(args.out, [records_folder(args.out, spec, angle) for spec in args.policies for angle in args.angles])
-    for spec in args.policies:  # a bad --policies entry fails now, not after the others' episodes
-        load_policy(spec, base, trust=args.trust)
     manual = args.manual if args.manual is not None else ([DEFAULT_MANUAL] if DEFAULT_MANUAL.is_dir() else [])
     record_dirs: list[Path] = []
     summaries = []
@@ -61,7 +76,7 @@ def run(args: argparse.Namespace) -> int:
             config = base.with_overrides({"pile.angle_deg": angle})
             policy = load_policy(spec, config, trust=args.trust)
             folder = records_folder(args.out, spec, angle)
-            for old in folder.glob("episode_*.npz"):  # a previous run's extra episodes would join the table
+            for old in folder.glob("episode_*.npz"):  # --overwrite (checked): a previous run's would join the table
                 old.unlink()
             results = evaluate(policy, config, args.episodes, seed=args.seed, records_dir=folder,
                                records_meta={"policy": spec, "source": "compare"})
@@ -94,11 +109,15 @@ def records_folder(out: Path, spec: str, angle: float) -> Path:
     return out / "records" / slug(spec) / f"{angle:g}deg"
 
 
-def check_outputs(out: Path, record_dirs: list[Path]) -> None:
+def check_outputs(out: Path, record_dirs: list[Path], overwrite: bool = False) -> None:
     """Fail before the first episode (ValueError naming the path) if ``--out`` or a file or folder under it
-    could not be written: the report, ``summary.json``, the records folders."""
+    could not be written: the report, ``summary.json``, the records folders; or, without ``overwrite``, if a
+    records folder already holds an earlier run's episodes."""
     check_output_dir(out, "--out")
     for name in ("report.md", "summary.json"):
         check_output_file(out / name, "--out")
     for folder in record_dirs:
         check_output_dir(folder, "--out")
+        if not overwrite and any(folder.glob("episode_*.npz")):
+            raise ValueError(f"--out {out}: {folder} already holds an earlier compare's episode records; "
+                             "pass --overwrite to replace them, or use another --out")

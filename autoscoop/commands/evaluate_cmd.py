@@ -6,7 +6,16 @@ import argparse
 from pathlib import Path
 
 from autoscoop.agents.loading import load_policy
-from autoscoop.commands import check_output_file, config_from_args, options, prepare_records_dir, write_json
+from autoscoop.commands import (
+    check_output_file,
+    config_from_args,
+    options,
+    prepare_records_dir,
+    records_dir_lock,
+    warn_if_frame_overridden,
+    write_json,
+)
+from autoscoop.core.config import ScoopConfig
 from autoscoop.core.policy import config_for_policy
 from autoscoop.envs import worlds_help
 from autoscoop.evaluation.evaluate import evaluate, format_table, summarize
@@ -33,9 +42,16 @@ def run(args: argparse.Namespace) -> int:
     config = config_from_args(args)
     if args.json:  # fail before the first episode, not after the last
         check_output_file(args.json, "--json")
-    if args.records:
+    if not args.records:
+        return _run(args, config)
+    with records_dir_lock(args.records):  # held from the empty-folder check to the last record
         prepare_records_dir(args.records, args.overwrite)
+        return _run(args, config)
+
+
+def _run(args: argparse.Namespace, config: ScoopConfig) -> int:
     policy = load_policy(args.policy, config, trust=args.trust)
+    warn_if_frame_overridden(args, policy, config)
     results = evaluate(policy, config, args.episodes, seed=args.seed, records_dir=args.records,
                        records_meta={"policy": args.policy})
     summary = summarize(results, config_for_policy(policy, config), args.policy)  # the frame it ran in

@@ -25,6 +25,7 @@ from tqdm import tqdm
 
 from autoscoop.agents.loading import load_policy
 from autoscoop.core.config import ScoopConfig
+from autoscoop.core.safe_files import quote
 from autoscoop.envs.outcome import EpisodeOutcome
 from autoscoop.evaluation.evaluate import evaluate
 from autoscoop.evaluation.summary import outcome_statistics
@@ -134,16 +135,17 @@ def case_names() -> list[str]:
 
 
 def select_cases(names: str | Iterable[str] | None = None) -> list[StressCase]:
-    """The cases named (comma-separated text or a list; ``None`` or empty: all), in the suite's order.
+    """The cases named (comma-separated text or a list; ``None``: all), in the suite's order.
 
     Raises:
-        ValueError: a name that is not a case; the message lists the known ones.
+        ValueError: a name that is not a case, or no name at all (``--cases ""``); the message lists the known ones.
     """
     if names is None:
         return list(CASES)
     wanted = [n.strip() for n in (names.split(",") if isinstance(names, str) else names) if n.strip()]
     if not wanted:
-        return list(CASES)
+        raise ValueError(f"--cases {quote(names)} names no case; name one or more of: {', '.join(case_names())} "
+                         "(or leave --cases out for all)")
     unknown = [n for n in wanted if n not in case_names()]
     if unknown:
         raise ValueError(f"unknown stress case(s) {', '.join(map(repr, unknown))}; "

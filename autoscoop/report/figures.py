@@ -23,6 +23,7 @@ from matplotlib.patches import Circle
 
 from autoscoop.core.config import PileConfig, RewardConfig
 from autoscoop.core.phases import PHASES
+from autoscoop.core.safe_files import atomic_output
 from autoscoop.report.data import Episode
 
 PHASE_COLOURS = {"approach": "#4C72B0", "fill": "#DD8452", "exit": "#55A868"}
@@ -38,8 +39,8 @@ def controller_colour(name: str, names: Sequence[str]) -> str:
 
 def _save(fig: Figure, path: str | Path) -> Path:
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=DPI)
+    with atomic_output(path) as tmp:  # a failed write leaves the previous figure
+        fig.savefig(tmp, dpi=DPI)
     return path
 
 

@@ -19,6 +19,7 @@ from typing import Any
 from matplotlib.figure import Figure
 from matplotlib.ticker import NullFormatter
 
+from autoscoop.core.safe_files import atomic_output, write_text_atomically
 from autoscoop.report.figures import DPI
 from autoscoop.training.sweep_results import TrialRow, ranked
 from autoscoop.training.sweep_space import Distribution, SweepSpace
@@ -51,8 +52,7 @@ def _cell(value: Any, digits: int = 3) -> str:
 
 def write_sweep_csv(rows: Sequence[TrialRow], swept: Sequence[str], path: Path) -> Path:
     """One row per trial, in trial-id order (:data:`CSV_HEAD`, the swept keys, :data:`CSV_TAIL`)."""
-    path.parent.mkdir(parents=True, exist_ok=True)
-    with open(path, "w", newline="") as handle:
+    with atomic_output(path) as tmp, open(tmp, "x", newline="") as handle:
         writer = csv.writer(handle)
         writer.writerow([*CSV_HEAD, *swept, *CSV_TAIL])
         for row in sorted(rows, key=lambda r: r.trial_id):
@@ -123,8 +123,8 @@ def plot_sweep(rows: Sequence[TrialRow], space: SweepSpace, path: Path, title: s
     axes[0].set_ylabel("score: delivered fill of the kept policy", fontsize=9)
     axes[0].set_ylim(-0.02, max(1.0, max((r.score for r in scored), default=1.0)) + 0.02)
     fig.suptitle(title + (f"; best (red): {best.trial_id}, {best.score:.3f}" if best else ""), fontsize=10)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=DPI)
+    with atomic_output(path) as tmp:
+        fig.savefig(tmp, dpi=DPI)
     return path
 
 
@@ -152,5 +152,5 @@ def write_sweep_report(rows: Sequence[TrialRow], space: SweepSpace, out_dir: Pat
              "`policy.*`); fill factor and success are that evaluation's:",
              sweep_table(rows, swept, out_dir), outro, f"![score against each swept setting]({figure.name})"]
     markdown = out_dir / "report.md"
-    markdown.write_text("\n\n".join(p for p in parts if p) + "\n")
+    write_text_atomically(markdown, "\n\n".join(p for p in parts if p) + "\n")
     return SweepFiles(table=table, markdown=markdown, figure=figure)

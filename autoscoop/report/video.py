@@ -7,6 +7,8 @@ from pathlib import Path
 
 import numpy as np
 
+from autoscoop.core.safe_files import atomic_output
+
 GIF_WIDTH_PX = 480
 """Width of the README GIF, pixels (height keeps the aspect ratio)."""
 GIF_FPS = 8.0
@@ -44,6 +46,7 @@ def write_gif(frames: Sequence[np.ndarray], path: str | Path, fps: float, gif_fp
         images.append(image.resize((width, height), Image.LANCZOS).quantize(colors=128))
     duration_ms = int(round(1000.0 * keep / fps))
     durations = [duration_ms] * (len(images) - 1) + [1500]  # linger on the result before looping
-    images[0].save(path, save_all=True, append_images=images[1:], duration=durations, loop=0,
-                   optimize=True)
+    with atomic_output(path) as tmp:  # a failed write leaves the previous file
+        images[0].save(tmp, save_all=True, append_images=images[1:], duration=durations, loop=0,
+                       optimize=True)
     return path

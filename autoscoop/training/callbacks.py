@@ -19,6 +19,7 @@ from tqdm import tqdm
 
 from autoscoop.agents.loading import SB3Policy
 from autoscoop.core.config import ScoopConfig
+from autoscoop.core.safe_files import atomic_output
 from autoscoop.envs.rollout import rollout
 from autoscoop.envs.scoop import make_scoop_env
 from autoscoop.training.checkpoints import actor_meta, save_checkpoint, save_safe_actor, write_run_json
@@ -251,7 +252,8 @@ class PolicyEvaluator:
         saved = save_safe_actor(model, actor, {**meta, "evaluation_delivered_fill": score})
         if score > self.best:
             self.best = score
-            model.save(self.run_dir / "policy.zip")
+            with atomic_output(self.run_dir / "policy.zip") as tmp:
+                model.save(tmp)
             save_safe_actor(model, self.run_dir / "policy.safetensors", {**meta, "selection_score_delivered_fill": score})
             self.info.update(best_score=score, best_episode=episode)
         evaluation = Evaluation(episode=episode, delivered_fill=score, fill_factor=row["fill_factor"],

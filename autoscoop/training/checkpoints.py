@@ -30,7 +30,7 @@ from autoscoop.agents.policy_files import (
     save_actor,
     sha256_of,
 )
-from autoscoop.core.safe_files import quote, read_json
+from autoscoop.core.safe_files import quote, read_json, write_json_atomically, write_text_atomically
 from autoscoop.core.version import __version__
 from autoscoop.training.model_state import BUFFER_FILE, TENSORS_FILE, load_model_state, save_model_state
 
@@ -96,9 +96,7 @@ def save_checkpoint(model: Any, run_dir: Path, bookkeeping: dict[str, Any], algo
 
 
 def _write_json_atomically(path: Path, data: dict[str, Any]) -> None:
-    tmp = path.with_name(path.name + ".tmp")
-    tmp.write_text(json.dumps(data, indent=1) + "\n")
-    os.replace(tmp, path)
+    write_json_atomically(path, data, indent=1)
 
 
 def find_checkpoint(run_dir: Path, algo: str) -> tuple[Path, dict[str, Any]] | None:
@@ -205,7 +203,7 @@ def restore_to_checkpoint(run_dir: Path, checkpoint: Path, state: dict[str, Any]
                                                             (run_dir / "evaluations.csv", state["evaluations_done"]))}
     for path, text in kept.items():  # after both are checked
         if text is not None:
-            path.write_text(text)
+            write_text_atomically(path, text)
     for name in BEST_FILES:
         kept = checkpoint / "best" / name
         if kept.is_file():
@@ -306,9 +304,7 @@ def keep_snapshot(run_dir: Path, episode: int, record: dict[str, Any]) -> None:
 
 def write_run_json(run_dir: Path, info: dict[str, Any]) -> None:
     """Replace ``run.json`` atomically (a crash leaves the old one or the new one, never half of one)."""
-    tmp = run_dir / "run.json.tmp"
-    tmp.write_text(json.dumps(info, indent=2) + "\n")
-    os.replace(tmp, run_dir / "run.json")
+    write_json_atomically(run_dir / "run.json", info)
 
 
 def read_run_json(run_dir: Path) -> dict[str, Any]:

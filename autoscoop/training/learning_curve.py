@@ -8,6 +8,8 @@ from pathlib import Path
 
 import numpy as np
 
+from autoscoop.core.safe_files import atomic_output
+
 
 def _moving_average(values: np.ndarray, window: int) -> np.ndarray:
     out = np.full(len(values), np.nan)
@@ -53,7 +55,7 @@ def plot_learning_curve(csv_path: str | Path, png_path: str | Path, window: int 
     fig.suptitle("Learning curve (cf. paper Fig. 8)")
     fig.tight_layout()
     png_path = Path(png_path)
-    png_path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(png_path, dpi=120)
+    with atomic_output(png_path) as tmp:
+        fig.savefig(tmp, dpi=120)
     plt.close(fig)
     return png_path

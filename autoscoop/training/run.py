@@ -42,7 +42,7 @@ from autoscoop.agents.algorithms import ALGORITHMS
 from autoscoop.agents.demonstrations import add_scripted_demonstrations
 from autoscoop.agents.policy_files import sha256_of
 from autoscoop.core.config import ScoopConfig, from_dict, save_yaml
-from autoscoop.core.safe_files import write_text_atomically
+from autoscoop.core.safe_files import atomic_output, write_text_atomically
 from autoscoop.core.version import __version__
 from autoscoop.training.callbacks import EpisodeLogger, Evaluation, PolicyEvaluator
 from autoscoop.training.checkpoints import (
@@ -293,7 +293,8 @@ def _run(run_dir: Path, config: ScoopConfig, spec: dict[str, Any], info: dict[st
         write_run_json(run_dir, info)
     save_safe_actor(model, run_dir / "last.safetensors", actor_meta(info, run_dir))
     if not (run_dir / "policy.zip").exists():  # no evaluation ran: the last policy is the policy
-        model.save(run_dir / "policy.zip")
+        with atomic_output(run_dir / "policy.zip") as tmp:
+            model.save(tmp)
         save_safe_actor(model, run_dir / "policy.safetensors", actor_meta(info, run_dir))
     info.update(status="finished", policy_zip_sha256=sha256_of(run_dir / "policy.zip"))
     write_run_json(run_dir, info)

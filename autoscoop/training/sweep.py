@@ -28,6 +28,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from autoscoop.core.safe_files import write_json_atomically
 from autoscoop.core.version import __version__
 from autoscoop.training.sweep_results import TrialRow, collect_row
 from autoscoop.training.sweep_space import Distribution, SweepSpace, check_episodes, plan_trials, space_from_dict
@@ -131,9 +132,7 @@ def read_plan(out: Path) -> dict[str, Any]:
 
 
 def _write_plan(out: Path, plan: dict[str, Any]) -> None:
-    tmp = out / (PLAN_FILE + ".tmp")
-    tmp.write_text(json.dumps(plan, indent=2) + "\n")
-    os.replace(tmp, out / PLAN_FILE)
+    write_json_atomically(out / PLAN_FILE, plan)
 
 
 def record_session_time(out: str | Path) -> None:
