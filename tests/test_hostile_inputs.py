@@ -13,6 +13,7 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 
+import gymnasium as gym
 import numpy as np
 import pytest
 
@@ -285,3 +286,43 @@ def test_a_hostile_input_is_refused_cleanly(case: Case, tmp_path: Path, capsys, 
 def test_the_suite_is_large_enough() -> None:
     assert len(CASES) >= 60
 
+
+
+# ------------------------------------------------------------------------------------ environment API
+class _EndsAtOnce(gym.Env):
+    """An env whose every step terminates and pays 1."""
+
+    observation_space = gym.spaces.Box(-1.0, 1.0, (1,))
+    action_space = gym.spaces.Box(-1.0, 1.0, (1,))
+
+    def reset(self, *, seed=None, options=None):
+        return np.zeros(1, dtype=np.float32), {}
+
+    def step(self, action):
+        return np.zeros(1, dtype=np.float32), 1.0, True, False, {}
+
+
+def test_step_after_termination_raises_until_reset() -> None:
+    from autoscoop.envs.scoop import EndedEpisodeGuard
+
+    env = EndedEpisodeGuard(_EndsAtOnce())
+    env.reset()
+    assert env.step(np.zeros(1))[2] is True
+    with pytest.raises(gym.error.ResetNeeded, match="reset"):
+        env.step(np.zeros(1))  # no second terminal bonus
+    env.reset()
+    assert env.step(np.zeros(1))[1] == 1.0
+
+
+def test_step_after_the_time_limit_raises_until_reset() -> None:
+    from autoscoop.envs.scoop import make_scoop_env
+
+    env = make_scoop_env(**{"pile.variants": 1, "env.max_episode_s": 0.5})
+    env.reset(seed=0)
+    ended = [env.step(np.zeros(3))[3] for _ in range(2)]
+    assert ended == [False, True]
+    with pytest.raises(gym.error.ResetNeeded):
+        env.step(np.zeros(3))
+    env.reset(seed=0)
+    env.step(np.zeros(3))
+    env.close()

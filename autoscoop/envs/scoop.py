@@ -350,9 +350,33 @@ class ScoopEnv(gym.Env):
                 "reward_progress": 0.0, "reward_mass": 0.0, "world": copy.deepcopy(self.world)}
 
 
+class EndedEpisodeGuard(gym.Wrapper):
+    """Refuses ``step`` once the episode has ended (terminated or truncated) until ``reset``, as Gymnasium's API
+    asks: stepping on would keep simulating past the terminal point and pay its bonus again.
+
+    Raises:
+        gymnasium.error.ResetNeeded: from ``step`` after the end.
+    """
+
+    def __init__(self, env: gym.Env) -> None:
+        super().__init__(env)
+        self._ended = False
+
+    def reset(self, **kwargs: Any) -> tuple[np.ndarray, dict]:
+        self._ended = False
+        return self.env.reset(**kwargs)
+
+    def step(self, action: np.ndarray) -> tuple[np.ndarray, float, bool, bool, dict]:
+        if self._ended:
+            raise gym.error.ResetNeeded("step() after the episode ended (terminated or truncated); call reset() first")
+        obs, reward, terminated, truncated, info = self.env.step(action)
+        self._ended = bool(terminated or truncated)
+        return obs, reward, terminated, truncated, info
+
+
 def make_scoop_env(config: ScoopConfig | None = None, render_mode: str | None = None,
                    **overrides: Any) -> gym.Env:
     """The entry point of every ``autoscoop/`` id (``gym.make("autoscoop/Scoop-v1", ...)``): the env inside a
-    ``TimeLimit`` of ``env.max_episode_s``."""
+    ``TimeLimit`` of ``env.max_episode_s``, inside an :class:`EndedEpisodeGuard`."""
     env = ScoopEnv(config=config, render_mode=render_mode, **overrides)
-    return TimeLimit(env, max_episode_steps=env.config.max_episode_steps)
+    return EndedEpisodeGuard(TimeLimit(env, max_episode_steps=env.config.max_episode_steps))
