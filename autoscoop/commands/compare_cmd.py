@@ -45,8 +45,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument("--manual", nargs="*", type=Path, default=None,
                         help=f"folders or files of manual episode records (default {DEFAULT_MANUAL} if it exists)")
     options.add_out_option(parser, Path("out/compare"))
-    parser.add_argument("--overwrite", action="store_true",
-                        help="replace the episode records an earlier compare left under --out (refused otherwise)")
+    options.add_overwrite_option(parser, "replace the episode records an earlier compare left under --out "
+                                         "(refused otherwise)")
     options.add_trust_option(parser)
     options.add_config_args(parser)
     parser.set_defaults(func=run)

@@ -31,8 +31,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument("--records", type=Path, metavar="DIR",
                         help="save each episode's record here (redraw figures with `autoscoop report DIR`); "
                              "the folder must be new or empty, unless --overwrite")
-    parser.add_argument("--overwrite", action="store_true",
-                        help="with --records: first remove the folder's episode_*.npz records")
+    options.add_overwrite_option(parser, "with --records: first remove the folder's episode_*.npz records")
     options.add_trust_option(parser)
     options.add_config_args(parser)
     parser.set_defaults(func=run)

@@ -94,6 +94,11 @@ def add_workers_option(parser: argparse.ArgumentParser) -> None:
                         help="run in this many worker processes (default 1; the results are the same)")
 
 
+def add_overwrite_option(parser: argparse.ArgumentParser, what: str) -> None:
+    """``--overwrite``: replace what an earlier run left where this one writes (``what``: which files, and where)."""
+    parser.add_argument("--overwrite", action="store_true", help=what)
+
+
 def add_json_option(parser: argparse.ArgumentParser, what: str, required: bool = False) -> None:
     """``--json FILE``: where the command writes its results (``what``: what goes in)."""
     parser.add_argument("--json", type=Path, required=required, metavar="FILE", help=f"write {what} to this JSON file")
