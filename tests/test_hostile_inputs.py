@@ -4,10 +4,13 @@ from a file (a crafted pickle would create the marker file)."""
 
 from __future__ import annotations
 
+import errno
 import hashlib
 import json
+import os
 import pickle
 import struct
+import subprocess
 import zipfile
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -18,6 +21,7 @@ import numpy as np
 import pytest
 
 from autoscoop.cli import main
+from autoscoop.core import safe_files
 
 MARKER = "pwned"
 """the file a crafted pickle creates, in the case's folder."""
@@ -326,3 +330,82 @@ def test_step_after_the_time_limit_raises_until_reset() -> None:
     env.reset(seed=0)
     env.step(np.zeros(3))
     env.close()
+
+
+# ------------------------------------------------------------------------------------------ full disks
+@pytest.fixture(params=["tmpfs", "injected"])
+def full_disk(request, tmp_path, monkeypatch):
+    """A folder on a 400 KiB tmpfs filled up to the last byte but for the files a case puts there first
+    (skipped where mounting is not permitted: it needs root), or a folder whose atomic writes fail with ENOSPC
+    (an injected fault)."""
+    folder = tmp_path / "disk"
+    folder.mkdir()
+    mounted = False
+    if request.param == "tmpfs":
+        mounted = os.geteuid() == 0 and subprocess.run(
+            ["mount", "-t", "tmpfs", "-o", "size=400k", "tmpfs", str(folder)], capture_output=True).returncode == 0
+        if not mounted:
+            pytest.skip("cannot mount a tmpfs here")
+
+    def fill() -> None:
+        if not mounted:
+            def no_space(path, flags):
+                raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+            monkeypatch.setattr(safe_files, "_fsync", no_space)
+            return
+        with open(folder / ".filler", "wb", buffering=0) as handle:
+            try:
+                while True:
+                    handle.write(bytes(4096))
+            except OSError:
+                pass
+
+    yield folder, fill
+    if mounted:
+        subprocess.run(["umount", "-l", str(folder)], check=False)
+
+
+def _records(tmp: Path) -> Path:
+    folder = tmp / "records"
+    if not folder.is_dir():
+        assert run_cli(["eval", "--episodes", "1", "--records", folder, "--set", "pile.variants=1"]) == 0
+    return folder
+
+
+DISK_FULL: dict[str, Callable[[Path, Path], list[str]]] = {
+    "eval-json": lambda disk, tmp: ["eval", "--episodes", "1", "--set", "pile.variants=1", "--json", disk / "old.json"],
+    "eval-records": lambda disk, tmp: ["eval", "--episodes", "1", "--set", "pile.variants=1", "--records", disk / "rec"],
+    "stress": lambda disk, tmp: ["stress", "--policy", "heuristic", "--episodes", "1", "--cases", "nominal",
+                                 "--json", disk / "old.json", "--out", disk / "stress"],
+    "export": lambda disk, tmp: ["export", "--onnx", disk / "old.onnx", "--check-states", "0"],
+    "report": lambda disk, tmp: ["report", _records(tmp), "--out", disk / "report"],
+    "compare": lambda disk, tmp: ["compare", "--policies", "heuristic", "--episodes", "1", "--angles", "32",
+                                  "--set", "pile.variants=1", "--out", disk / "cmp"],
+    "train": lambda disk, tmp: ["train", "--recipe", "paper", "--episodes", "1", "--out", disk / "run",
+                                "--no-progress", "--set", "pile.variants=1"],
+    "config-write": lambda disk, tmp: ["config", "--write", disk / "old.yaml"],
+}
+
+
+@pytest.mark.parametrize("command", DISK_FULL)
+def test_a_full_disk_is_reported_and_loses_nothing(command, full_disk, tmp_path, capsys, monkeypatch) -> None:
+    disk, fill = full_disk
+    monkeypatch.chdir(tmp_path)
+    argv = DISK_FULL[command](disk, tmp_path)
+    capsys.readouterr()
+    old = {disk / name: f"an earlier {name}".encode() for name in ("old.json", "old.onnx", "old.yaml")}
+    for path, data in old.items():
+        path.write_bytes(data)
+    fill()
+    code = run_cli(argv)
+    out, err = capsys.readouterr()
+    assert code == 2, err
+    assert "Traceback" not in err and str(disk) in err
+    assert "No space left on device" in err
+    assert all(path.read_bytes() == data for path, data in old.items())
+    leftovers = [p.name for p in disk.rglob("*") if p.is_file() and p.stat().st_size and p.name != ".filler"
+                 and p not in old]
+    assert not [name for name in leftovers if ".tmp" in name], leftovers
+    assert not (disk / "run").exists()  # a run that failed before it began leaves no folder
+    if command == "stress":
+        assert "nominal" in out  # the measurements are shown although the files could not be written

@@ -355,10 +355,8 @@ def lock_run_dir(run_dir: Path) -> Iterator[None]:
                          f"wait for it to end, or stop it, before training into this directory") from None
     holder = run_dir / HOLDER_FILE
     try:
-        tmp = run_dir / (HOLDER_FILE + ".tmp")
-        tmp.write_text(json.dumps({"pid": os.getpid(), "host": socket.gethostname(),
-                                   "started": time.strftime("%Y-%m-%dT%H:%M:%S%z")}) + "\n")
-        os.replace(tmp, holder)
+        write_json_atomically(holder, {"pid": os.getpid(), "host": socket.gethostname(),
+                                       "started": time.strftime("%Y-%m-%dT%H:%M:%S%z")}, indent=None)
         yield
     finally:
         holder.unlink(missing_ok=True)
