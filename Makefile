@@ -17,7 +17,7 @@ $(VENV)/.installed: pyproject.toml
 	touch $@
 
 $(VENV)/.installed-test: $(VENV)/.installed
-	$(PIP) install -e ".[$(EXTRAS),sweep,test]"
+	$(PIP) install -e ".[$(EXTRAS),sweep,ros2,test]"
 	touch $@
 
 install: $(VENV)/.installed
