@@ -107,3 +107,32 @@ def test_the_environment_charges_a_flipping_controller_and_not_a_steady_one():
     steady = [env.step(np.array([0.5, 0.5, 0.5]))[4]["reward_action_change"] for _ in range(3)]
     assert steady == pytest.approx([-0.0625, 0.0, 0.0])
     env.close()
+
+
+def test_approach_height_cost_charges_a_raised_tip_until_the_pile_is_reached():
+    config = RewardConfig(c_approach_height=10.0, approach_height_from_m=0.06)
+    reward, terms = scoop_reward(0.3, 0.5, False, 0.0, config, approach_height_m=0.16)
+    assert terms["reward_approach_height"] == pytest.approx(-1.0)
+    assert reward == pytest.approx(sum(terms.values()))
+    assert scoop_reward(0.3, 0.5, False, 0.0, config, approach_height_m=0.05)[1]["reward_approach_height"] == 0.0
+    assert scoop_reward(0.3, 0.5, True, 0.0, config, approach_height_m=None)[1]["reward_approach_height"] == 0.0
+    _, paper = scoop_reward(0.3, 0.5, False, 0.0, RewardConfig(), approach_height_m=0.3)
+    assert set(paper) == {"reward_progress", "reward_mass"}
+    with pytest.raises(ConfigError, match="c_approach_height"):
+        RewardConfig.from_dict({"c_approach_height": -1.0})
+
+
+def test_the_environment_charges_a_raised_approach_and_stops_once_the_tip_reaches_the_pile():
+    from autoscoop.envs.scoop import make_scoop_env
+
+    env = make_scoop_env(ScoopConfig().with_overrides({"pile.variants": 1, "reward.c_approach_height": 10.0}))
+    env.reset(seed=0)
+    raised = [env.step(np.array([0.0, -0.5, 0.0]))[4] for _ in range(3)]  # lift: the tip rises, the loader stands
+    assert raised[-1]["reward_approach_height"] < -0.5
+    env.reset(seed=0)
+    infos = [env.step(np.array([1.0, 0.0, 0.0]))[4] for _ in range(8)]  # drive in low
+    touched = next(i for i, info in enumerate(infos) if info["penetrating"])
+    assert all(info["reward_approach_height"] == 0.0 for info in infos)
+    infos = [env.step(np.array([0.0, -0.5, 0.0]))[4] for _ in range(3)]  # lifting after the pile is free
+    assert touched < 8 and all(info["reward_approach_height"] == 0.0 for info in infos)
+    env.close()

@@ -14,18 +14,20 @@ from collections.abc import Sequence
 import torch
 from torch import nn
 
-from autoscoop.core.state import ACTION_SIZE, STATE_CENTRE, STATE_SCALE, STATE_SIZE
+from autoscoop.core.state import ACTION_SIZE, actor_input_normalization, actor_input_size
 
 PAPER_LAYERS = (100, 80, 60)
 
 
 class StateNormalizer(nn.Module):
-    """(state - centre) / scale with fixed constants."""
+    """(state - centre) / scale with fixed constants; with ``history_steps`` > 1 the actor's input of that
+    many states and commands (:func:`autoscoop.core.state.actor_input_normalization`)."""
 
-    def __init__(self) -> None:
+    def __init__(self, history_steps: int = 1) -> None:
         super().__init__()
-        self.register_buffer("centre", torch.as_tensor(STATE_CENTRE))
-        self.register_buffer("scale", torch.as_tensor(STATE_SCALE))
+        centre, scale = actor_input_normalization(history_steps)
+        self.register_buffer("centre", torch.as_tensor(centre))
+        self.register_buffer("scale", torch.as_tensor(scale))
 
     def forward(self, state: torch.Tensor) -> torch.Tensor:
         return (state - self.centre) / self.scale
@@ -45,13 +47,15 @@ def paper_mlp(n_in: int, layers: Sequence[int]) -> nn.Sequential:
 
 
 class PaperActor(nn.Module):
-    """mu(s): the deterministic policy, state (12) -> action in [-1, 1] (3); the input is a raw state."""
+    """mu(s): the deterministic policy, state (12) -> action in [-1, 1] (3); the input is a raw state, or with
+    ``history_steps`` k > 1 the raw input of :class:`autoscoop.core.state.ActorInputHistory`."""
 
-    def __init__(self, layers: Sequence[int] = PAPER_LAYERS, normalize: bool = True) -> None:
+    def __init__(self, layers: Sequence[int] = PAPER_LAYERS, normalize: bool = True, history_steps: int = 1) -> None:
         super().__init__()
         self.layers = tuple(layers)
-        self.normalizer = StateNormalizer() if normalize else nn.Identity()
-        self.body = paper_mlp(STATE_SIZE, self.layers)
+        self.history_steps = int(history_steps)
+        self.normalizer = StateNormalizer(history_steps) if normalize else nn.Identity()
+        self.body = paper_mlp(actor_input_size(history_steps), self.layers)
         self.head = nn.Linear(self.layers[-1], ACTION_SIZE)
 
     def forward(self, state: torch.Tensor) -> torch.Tensor:

@@ -1,7 +1,10 @@
 """Run an exported actor (``autoscoop export --onnx``) with onnxruntime alone: no torch on the robot.
 
 The file maps the raw 12-number state (float32, ``state``) to the 3-number action in [-1, 1]
-(``action``); its input and output scaling are inside the graph. :class:`OnnxPolicy` offers the
+(``action``); its input and output scaling are inside the graph. An actor that reads a short history
+(metadata ``history_steps`` k > 1) maps k states and k commands instead, and :class:`OnnxPolicy` builds
+that input from the states it is given with the same :class:`~autoscoop.core.state.ActorInputHistory`
+as evaluation and training. :class:`OnnxPolicy` offers the
 :class:`~autoscoop.core.policy.Policy` interface, so evaluation, the demo and the ROS controller run
 it like any other controller.
 """
@@ -13,7 +16,15 @@ from pathlib import Path
 import numpy as np
 
 from autoscoop.core.safe_files import quote
-from autoscoop.core.state import ACTION_NAMES, ACTION_SIZE, STATE_NAMES, STATE_SIZE, recorded_state_frame
+from autoscoop.core.state import (
+    ACTION_NAMES,
+    ACTION_SIZE,
+    STATE_NAMES,
+    STATE_SIZE,
+    ActorInputHistory,
+    actor_input_size,
+    recorded_state_frame,
+)
 
 ONNX_FORMAT = "autoscoop-onnx-policy/1"
 """Value of the ``autoscoop_format`` metadata entry of an exported policy."""
@@ -30,7 +41,7 @@ def _is_batch_of(args: list, name: str, width: int) -> bool:
 
 
 class OnnxPolicy:
-    """A policy from an exported ONNX actor (stateless: ``reset`` does nothing).
+    """A policy from an exported ONNX actor (``reset`` forgets the history of an actor that reads one).
 
     Args:
         path: the ``.onnx`` file.
@@ -61,11 +72,18 @@ class OnnxPolicy:
             raise ValueError(f"ONNX policy {self.path}: not an autoscoop policy export (metadata autoscoop_format "
                              f"is {self.metadata.get('autoscoop_format')!r}, expected {ONNX_FORMAT!r}); "
                              "write it with `autoscoop export --onnx`")
+        history = self.metadata.get("history_steps", "1")
+        if not history.isdigit() or not 1 <= int(history) <= 8:
+            raise ValueError(f"ONNX policy {self.path}: metadata history_steps {history!r} is not a whole number "
+                             "from 1 to 8")
+        self.history = ActorInputHistory(int(history))
+        size = actor_input_size(self.history.history_steps)
         inputs, outputs = self.session.get_inputs(), self.session.get_outputs()
-        if not _is_batch_of(inputs, INPUT_NAME, STATE_SIZE):
-            raise ValueError(f"ONNX policy {self.path}: expected one float32 input {INPUT_NAME!r} of shape "
-                             f"(batch, {STATE_SIZE}) ({', '.join(STATE_NAMES)}), got "
-                             f"{quote([(i.name, i.type, i.shape) for i in inputs])}")
+        if not _is_batch_of(inputs, INPUT_NAME, size):
+            what = (f"(batch, {STATE_SIZE}) ({', '.join(STATE_NAMES)})" if size == STATE_SIZE
+                    else f"(batch, {size}) ({self.history.history_steps} states and commands, newest first)")
+            raise ValueError(f"ONNX policy {self.path}: expected one float32 input {INPUT_NAME!r} of shape {what}, "
+                             f"got {quote([(i.name, i.type, i.shape) for i in inputs])}")
         if not _is_batch_of(outputs, OUTPUT_NAME, ACTION_SIZE):
             raise ValueError(f"ONNX policy {self.path}: expected one float32 output {OUTPUT_NAME!r} of shape "
                              f"(batch, {ACTION_SIZE}) ({', '.join(ACTION_NAMES)}), got "
@@ -85,13 +103,18 @@ class OnnxPolicy:
                              f"{ACTION_SIZE} finite numbers")
 
     def reset(self) -> None:
-        """Nothing to forget: the actor is a function of the state."""
+        """Forget the episode's history (an actor of the state alone keeps none)."""
+        self.history.reset()
 
     def act(self, observation: np.ndarray) -> np.ndarray:
-        """The action (drive, lift, tilt) in [-1, 1] for one state."""
-        state = np.asarray(observation, dtype=np.float32).reshape(1, STATE_SIZE)
-        return self.session.run(None, {INPUT_NAME: state})[0][0]
+        """The action (drive, lift, tilt) in [-1, 1] for one 12-number state (the actor's input built by
+        :class:`~autoscoop.core.state.ActorInputHistory`)."""
+        actor_input = self.history.observe(observation).reshape(1, -1)
+        action = self.session.run(None, {INPUT_NAME: actor_input})[0][0]
+        self.history.acted(action)
+        return action
 
-    def act_batch(self, states: np.ndarray) -> np.ndarray:
-        """Actions (n, 3) for states (n, 12)."""
-        return self.session.run(None, {INPUT_NAME: np.asarray(states, dtype=np.float32).reshape(-1, STATE_SIZE)})[0]
+    def act_batch(self, inputs: np.ndarray) -> np.ndarray:
+        """Actions (n, 3) for raw actor inputs (n, size): states (n, 12) for an actor of the state alone."""
+        size = actor_input_size(self.history.history_steps)
+        return self.session.run(None, {INPUT_NAME: np.asarray(inputs, dtype=np.float32).reshape(-1, size)})[0]

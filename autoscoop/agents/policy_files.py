@@ -18,7 +18,7 @@ from safetensors.torch import load_file, save_file
 
 from autoscoop.agents.networks import PaperActor
 from autoscoop.core.safe_files import UnsafeInputError, atomic_output, quote, read_json, write_json_atomically
-from autoscoop.core.state import recorded_state_frame
+from autoscoop.core.state import ActorInputHistory, history_steps_for_input, recorded_state_frame
 
 FORMAT = "autoscoop-actor/1"
 
@@ -42,6 +42,8 @@ MAX_SIDECAR_BYTES = 64 << 10
 """cap of an actor's ``.json`` sidecar, bytes."""
 MAX_LAYERS, MAX_WIDTH = 16, 4096
 """the most hidden layers, and units per layer, a sidecar may declare."""
+MAX_HISTORY_STEPS = 8
+"""the most states (and commands) an actor may read (:class:`autoscoop.core.state.ActorInputHistory`)."""
 
 
 def save_actor(actor: PaperActor, path: str | Path, metadata: dict[str, Any] | None = None) -> Path:
@@ -52,6 +54,8 @@ def save_actor(actor: PaperActor, path: str | Path, metadata: dict[str, Any] | N
         save_file(tensors, str(tmp))
     sidecar = {"format": FORMAT, "layers": list(actor.layers), "output": "tanh", "sha256": sha256_of(path),
                **(metadata or {})}
+    if actor.history_steps > 1:  # files of the state alone stay as they were
+        sidecar["history_steps"] = actor.history_steps
     write_json_atomically(path.with_suffix(".json"), sidecar)
     return path
 
@@ -87,8 +91,12 @@ def load_actor(path: str | Path) -> tuple[PaperActor, dict[str, Any]]:
             and all(isinstance(n, int) and not isinstance(n, bool) and 0 < n <= MAX_WIDTH for n in layers)):
         raise PolicyFileError(f"{sidecar_path}: 'layers' must be a list of 1 to {MAX_LAYERS} whole numbers in "
                               f"[1, {MAX_WIDTH}] (hidden layer widths, e.g. [100, 80, 60]); got {quote(layers)}")
-    _check_header(path, layers)
-    actor = PaperActor(layers=layers)
+    history = meta.get("history_steps", 1)
+    if not isinstance(history, int) or isinstance(history, bool) or not 1 <= history <= MAX_HISTORY_STEPS:
+        raise PolicyFileError(f"{sidecar_path}: 'history_steps' must be a whole number from 1 to {MAX_HISTORY_STEPS}, "
+                              f"got {quote(history)}")
+    _check_header(path, layers, history)
+    actor = PaperActor(layers=layers, history_steps=history)
     try:
         actor.load_state_dict(load_file(str(path)))
     except (RuntimeError, KeyError, SafetensorError) as error:
@@ -97,9 +105,9 @@ def load_actor(path: str | Path) -> tuple[PaperActor, dict[str, Any]]:
     return actor, meta
 
 
-def _check_header(path: Path, layers: list[int]) -> None:
+def _check_header(path: Path, layers: list[int], history_steps: int = 1) -> None:
     """Compare the tensors the weights file declares (names, float32, shapes) with those of an actor of
-    ``layers``, built on torch's ``meta`` device (no memory)."""
+    ``layers`` reading ``history_steps`` states, built on torch's ``meta`` device (no memory)."""
     try:
         with safe_open(str(path), framework="pt") as weights:
             found = {name: (weights.get_slice(name).get_dtype(), tuple(weights.get_slice(name).get_shape()))
@@ -107,7 +115,8 @@ def _check_header(path: Path, layers: list[int]) -> None:
     except (SafetensorError, OSError) as error:
         raise PolicyFileError(f"{path}: not a readable safetensors file ({quote(str(error))})") from None
     with torch.device("meta"):
-        expected = {name: ("F32", tuple(tensor.shape)) for name, tensor in PaperActor(layers=layers).state_dict().items()}
+        expected = {name: ("F32", tuple(tensor.shape)) for name, tensor in PaperActor(layers=layers, history_steps=history_steps)
+                    .state_dict().items()}
     if found != expected:
         differ = sorted(name for name in found.keys() | expected.keys() if found.get(name) != expected.get(name))
         shown = ", ".join(f"{name} {found.get(name, 'missing')} (expected {expected.get(name, 'none')})"
@@ -131,13 +140,19 @@ class ActorPolicy:
         except ValueError as error:
             raise PolicyFileError(str(error)) from None
 
+        self.history = ActorInputHistory(self.actor.history_steps)
+
     def reset(self) -> None:
-        """The actor is stateless."""
+        """Forget the episode's history (an actor of the state alone keeps none)."""
+        self.history.reset()
 
     def act(self, observation: np.ndarray) -> np.ndarray:
+        """The action for this 12-number state (the actor's input built by :class:`ActorInputHistory`)."""
         with torch.no_grad():
-            state = torch.as_tensor(np.asarray(observation, dtype=np.float32)).reshape(1, -1)
-            return self.actor(state)[0].numpy()
+            actor_input = torch.as_tensor(self.history.observe(observation)).reshape(1, -1)
+            action = self.actor(actor_input)[0].numpy()
+        self.history.acted(action)
+        return action
 
 
 def actor_from_sb3(model: Any) -> PaperActor:
@@ -151,8 +166,9 @@ def actor_from_sb3(model: Any) -> PaperActor:
         body, head = sb3_actor.latent_pi, sb3_actor.mu
     else:
         raise PolicyFileError(f"cannot export the actor of {type(model).__name__} to the safe format")
-    layers = [m.out_features for m in body if isinstance(m, torch.nn.Linear)]
-    actor = PaperActor(layers=layers)
+    linear = [m for m in body if isinstance(m, torch.nn.Linear)]
+    layers = [m.out_features for m in linear]
+    actor = PaperActor(layers=layers, history_steps=history_steps_for_input(linear[0].in_features))
     actor.body.load_state_dict(body.state_dict())
     actor.head.load_state_dict(head.state_dict())
     return actor.eval()

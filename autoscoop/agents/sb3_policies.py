@@ -14,47 +14,51 @@ from stable_baselines3.td3.policies import Actor, TD3Policy
 from torch import nn
 
 from autoscoop.agents.networks import PAPER_LAYERS, PaperQNetwork, StateNormalizer, paper_mlp
-from autoscoop.core.state import STATE_SIZE
+from autoscoop.core.state import actor_input_size
 
 
 class NormalizedState(BaseFeaturesExtractor):
-    """Features = the state under the fixed normalisation of :mod:`autoscoop.core.state`."""
+    """Features = the actor's input (the state, or a history of ``history_steps`` states and commands) under
+    the fixed normalisation of :mod:`autoscoop.core.state`."""
 
-    def __init__(self, observation_space: gym.spaces.Box) -> None:
+    def __init__(self, observation_space: gym.spaces.Box, history_steps: int = 1) -> None:
         super().__init__(observation_space, features_dim=int(observation_space.shape[0]))
-        self.normalizer = StateNormalizer()
+        self.normalizer = StateNormalizer(history_steps)
 
     def forward(self, observations: torch.Tensor) -> torch.Tensor:
         return self.normalizer(observations)
 
 
 class RobotState(BaseFeaturesExtractor):
-    """The actor's features under an asymmetric critic: the robot's state only (the observation's first
-    :data:`~autoscoop.core.state.STATE_SIZE` numbers), normalised; the privileged rest is dropped."""
+    """The actor's features under an asymmetric critic: the robot's input only (the observation's first
+    :func:`~autoscoop.core.state.actor_input_size` numbers), normalised; the privileged rest is dropped."""
 
-    def __init__(self, observation_space: gym.spaces.Box) -> None:
-        super().__init__(observation_space, features_dim=STATE_SIZE)
-        self.normalizer = StateNormalizer()
+    def __init__(self, observation_space: gym.spaces.Box, history_steps: int = 1) -> None:
+        size = actor_input_size(history_steps)
+        super().__init__(observation_space, features_dim=size)
+        self.size = size
+        self.normalizer = StateNormalizer(history_steps)
 
     def forward(self, observations: torch.Tensor) -> torch.Tensor:
-        return self.normalizer(observations[:, :STATE_SIZE])
+        return self.normalizer(observations[:, :self.size])
 
 
 class PrivilegedState(BaseFeaturesExtractor):
-    """The critic's features under an asymmetric critic: the normalised state, then the simulator's
+    """The critic's features under an asymmetric critic: the normalised actor input, then the simulator's
     privileged numbers as they are (:mod:`autoscoop.envs.privileged`; each of order one)."""
 
-    def __init__(self, observation_space: gym.spaces.Box) -> None:
+    def __init__(self, observation_space: gym.spaces.Box, history_steps: int = 1) -> None:
         super().__init__(observation_space, features_dim=int(observation_space.shape[0]))
-        self.normalizer = StateNormalizer()
+        self.size = actor_input_size(history_steps)
+        self.normalizer = StateNormalizer(history_steps)
 
     def forward(self, observations: torch.Tensor) -> torch.Tensor:
-        return torch.cat([self.normalizer(observations[:, :STATE_SIZE]), observations[:, STATE_SIZE:]], dim=1)
+        return torch.cat([self.normalizer(observations[:, :self.size]), observations[:, self.size:]], dim=1)
 
 
-def is_privileged(observation_space: gym.spaces.Space) -> bool:
-    """Whether observations carry privileged numbers after the state (an asymmetric critic's training)."""
-    return int(observation_space.shape[0]) > STATE_SIZE
+def is_privileged(observation_space: gym.spaces.Space, history_steps: int = 1) -> bool:
+    """Whether observations carry privileged numbers after the actor's input (an asymmetric critic's training)."""
+    return int(observation_space.shape[0]) > actor_input_size(history_steps)
 
 
 class PaperActorSB3(Actor):
@@ -96,21 +100,26 @@ class PaperCriticSB3(ContinuousCritic):
 class _PaperDefaults:
     """What the paper's SB3 policies share: its hidden layers, the state normalisation, its critic."""
 
-    def __init__(self, *args: Any, **kwargs: Any) -> None:
+    def __init__(self, *args: Any, history_steps: int = 1, **kwargs: Any) -> None:
+        self.history_steps = int(history_steps)
         kwargs.setdefault("net_arch", list(PAPER_LAYERS))
         kwargs.setdefault("features_extractor_class", NormalizedState)
+        kwargs.setdefault("features_extractor_kwargs", {"history_steps": self.history_steps})
         super().__init__(*args, **kwargs)
 
+    def _get_constructor_parameters(self) -> dict[str, Any]:
+        return {**super()._get_constructor_parameters(), "history_steps": self.history_steps}
+
     def make_critic(self, features_extractor: BaseFeaturesExtractor | None = None) -> PaperCriticSB3:
-        if is_privileged(self.observation_space):  # the critic sees all; never the actor's extractor
-            features_extractor = PrivilegedState(self.observation_space)
+        if is_privileged(self.observation_space, self.history_steps):  # the critic sees all; never the actor's
+            features_extractor = PrivilegedState(self.observation_space, self.history_steps)
         critic_kwargs = self._update_features_extractor(self.critic_kwargs, features_extractor)
         return PaperCriticSB3(**critic_kwargs).to(self.device)
 
     def actor_features(self, features_extractor: BaseFeaturesExtractor | None) -> BaseFeaturesExtractor | None:
         """The actor's features extractor: the state only, when observations carry privileged numbers."""
-        if is_privileged(self.observation_space):
-            return RobotState(self.observation_space)
+        if is_privileged(self.observation_space, self.history_steps):
+            return RobotState(self.observation_space, self.history_steps)
         return features_extractor
 
 

@@ -38,7 +38,7 @@ def onnx_path(text: str) -> Path:
 
 def run(args: argparse.Namespace) -> int:
     from autoscoop.agents.loading import load_policy  # noqa: PLC0415
-    from autoscoop.deploy.export import check_parity, export_onnx, exportable_actor, random_states  # noqa: PLC0415
+    from autoscoop.deploy.export import check_parity, export_onnx, exportable_actor, random_actor_inputs  # noqa: PLC0415
 
     config = config_from_args(args)
     policy = load_policy(args.policy, config, trust=args.trust)
@@ -49,7 +49,7 @@ def run(args: argparse.Namespace) -> int:
     print(f"wrote {path} ({path.stat().st_size / 1024:.1f} KiB)")
     if args.check_states == 0:
         return 0
-    report = check_parity(actor, path, random_states(args.check_states))
+    report = check_parity(actor, path, random_actor_inputs(args.check_states, getattr(actor, "history_steps", 1)))
     print(f"parity over {report['states']} random states: max |onnx - torch| = {report['max_abs_diff']:.2e} "
           f"(allowed {report['tolerance']:.0e}; float32 rounding: torch {report['torch_vs_float64']:.1e}, "
           f"onnxruntime {report['onnx_vs_float64']:.1e} from float64)")

@@ -293,6 +293,12 @@ class RewardConfig(ConfigModel):
     c_action_change: float = setting(0.0, "-", "each step costs c_action_change times the action's change from "
                                      "the last step (mean of the squared halved changes: 0 to 1; 0: off, the "
                                      "paper's reward)", 0.0, 100.0)
+    c_approach_height: float = setting(0.0, "1/m", "until the tip first reaches the pile, each step costs "
+                                       "c_approach_height per metre of tip height above approach_height_from_m "
+                                       "(an operator approaches with the bucket low; 0: off, the paper's "
+                                       "reward)", 0.0, 1000.0)
+    approach_height_from_m: float = setting(0.06, "m", "tip height above the ground from which "
+                                            "c_approach_height costs", 0.0, 0.5)
 
 
 class EnvConfig(ConfigModel):

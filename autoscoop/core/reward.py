@@ -23,6 +23,10 @@ tips the loader onto its front wheels, and a loader on its nose neither drives n
 actions, a_-1 = 0 (the loader starts still): a controller that flips its commands from one control
 period to the next (bang-bang, a limit cycle short of the terminal point) pays for it, and a robot's
 actuators are spared the jerk.
+``reward.c_approach_height`` > 0 costs c_approach_height * (h_t - h_o) at every step for tip height h_t
+above h_o = ``reward.approach_height_from_m`` until the tip first reaches the pile (the term
+``reward_approach_height``): a bucket raised in front of the pile and dropped again before it cuts
+costs a second of the cycle and the energy of the lift.
 """
 
 from __future__ import annotations
@@ -49,7 +53,8 @@ def action_change(previous: Sequence[float], action: Sequence[float]) -> float:
 
 def scoop_reward(tip_to_pile_m: float, tip_to_terminal_m: float, penetrating: bool, w: float,
                  config: RewardConfig, volumetric_fill: float = 0.0,
-                 chassis_pitch_rad: float = 0.0, command_change: float = 0.0) -> tuple[float, dict[str, float]]:
+                 chassis_pitch_rad: float = 0.0, command_change: float = 0.0,
+                 approach_height_m: float | None = None) -> tuple[float, dict[str, float]]:
     """Reward of one step and its terms.
 
     Args:
@@ -61,10 +66,13 @@ def scoop_reward(tip_to_pile_m: float, tip_to_terminal_m: float, penetrating: bo
         volumetric_fill: v_t, the particles' volume over the bucket's capacity (``fill_measure = scoop``).
         chassis_pitch_rad: the chassis pitch, rad, positive nose down (``c_pitch`` > 0).
         command_change: u_t of :func:`action_change`, 0 to 1 (``c_action_change`` > 0).
+        approach_height_m: the tip's height above the ground, m, while it has not yet reached the pile;
+            ``None`` once it has (``c_approach_height`` > 0).
 
     Returns:
         (reward, {"reward_progress": P_t, "reward_mass": c_w * w_t or 0}, with "reward_pitch" where
-        ``c_pitch`` > 0 and "reward_action_change" where ``c_action_change`` > 0); the terms sum to the reward.
+        ``c_pitch`` > 0, "reward_action_change" where ``c_action_change`` > 0 and "reward_approach_height"
+        where ``c_approach_height`` > 0); the terms sum to the reward.
     """
     distance = tip_to_terminal_m if penetrating else tip_to_pile_m
     progress = 1.0 - math.tanh(distance / config.distance_scale_m) ** 2
@@ -80,4 +88,7 @@ def scoop_reward(tip_to_pile_m: float, tip_to_terminal_m: float, penetrating: bo
         terms["reward_pitch"] = -config.c_pitch * excess_deg
     if config.c_action_change:
         terms["reward_action_change"] = -config.c_action_change * command_change
+    if config.c_approach_height:
+        excess_m = 0.0 if approach_height_m is None else max(approach_height_m - config.approach_height_from_m, 0.0)
+        terms["reward_approach_height"] = -config.c_approach_height * excess_m
     return float(sum(terms.values())), terms

@@ -195,3 +195,86 @@ STATE_CENTRE = np.array([0.5, 1.15, 0.15, 0.95, 0.2, 0.15, 0.0, 0.1, 0.2, 0.0, 0
 STATE_SCALE = np.array([0.5, 0.1, 0.15, 0.05, 0.1, 0.15, 0.1, 0.2, 0.7, 0.05, 0.1, 0.25], dtype=np.float32)
 """Fixed normalisation of the state for neural networks: (state - centre) / scale is about [-1, 1]
 over the reachable states (w 0..1, the arm's workspace, speeds and joint ranges, one step's change)."""
+
+
+ACTION_CENTRE = np.zeros(ACTION_SIZE, dtype=np.float32)
+ACTION_SCALE = np.ones(ACTION_SIZE, dtype=np.float32)
+
+
+def actor_input_size(history_steps: int) -> int:
+    """How many numbers the actor reads: the 12-number state alone for ``history_steps`` 1 (the paper's),
+    else that many states and as many earlier commands (:class:`ActorInputHistory`)."""
+    if history_steps < 1:
+        raise ValueError(f"history_steps must be >= 1, got {history_steps}")
+    return STATE_SIZE if history_steps == 1 else history_steps * (STATE_SIZE + ACTION_SIZE)
+
+
+def history_steps_for_input(size: int) -> int:
+    """The ``history_steps`` whose actor input has ``size`` numbers (:func:`actor_input_size`).
+
+    Raises:
+        ValueError: when no history gives that size.
+    """
+    if size == STATE_SIZE:
+        return 1
+    steps, rest = divmod(size, STATE_SIZE + ACTION_SIZE)
+    if rest or steps < 2:
+        raise ValueError(f"an actor input of {size} numbers is neither the {STATE_SIZE}-number state nor a history "
+                         f"of k >= 2 states and commands (k x {STATE_SIZE + ACTION_SIZE})")
+    return steps
+
+
+def actor_input_normalization(history_steps: int) -> tuple[np.ndarray, np.ndarray]:
+    """(centre, scale) of the actor's input for neural networks: the state's for each state of the history,
+    none (0, 1) for the commands, which are already in [-1, 1]."""
+    if history_steps == 1:
+        return STATE_CENTRE, STATE_SCALE
+    centre = np.concatenate([np.tile(STATE_CENTRE, history_steps), np.tile(ACTION_CENTRE, history_steps)])
+    scale = np.concatenate([np.tile(STATE_SCALE, history_steps), np.tile(ACTION_SCALE, history_steps)])
+    return centre.astype(np.float32), scale.astype(np.float32)
+
+
+class ActorInputHistory:
+    """The actor's input built from the states it has seen and the commands it gave: the one builder that
+    training (an environment wrapper), evaluation, the ONNX runner and the ROS node share.
+
+    With ``history_steps`` k >= 2 the input is, newest first,
+    ``[s_t, s_t-1, ..., s_t-k+1, a_t-1, a_t-2, ..., a_t-k]`` (k states of :data:`STATE_NAMES`, then k
+    actions of :data:`ACTION_NAMES`, each clipped to [-1, 1]): from how the arm, the wheels and the load
+    answered its last commands, the controller can tell what it cannot measure (how heavy the earth is,
+    how late its readings come). At an episode's start the first state stands for the states before it
+    and the commands before it are 0 (the loader stands still). With k = 1 the input is the state alone.
+
+    Args:
+        history_steps: k, 1 or more.
+    """
+
+    def __init__(self, history_steps: int) -> None:
+        self.history_steps = int(history_steps)
+        self.size = actor_input_size(self.history_steps)
+        self._states: list[np.ndarray] = []
+        self._actions: list[np.ndarray] = []
+        self.reset()
+
+    def reset(self) -> None:
+        """Forget the episode: the next state starts a new history."""
+        self._states = []
+        self._actions = [np.zeros(ACTION_SIZE, dtype=np.float32) for _ in range(self.history_steps)]
+
+    def observe(self, state: np.ndarray) -> np.ndarray:
+        """The actor's input (float32, :attr:`size` numbers) with ``state`` as the newest state."""
+        state = np.asarray(state, dtype=np.float32).reshape(STATE_SIZE)
+        if self.history_steps == 1:
+            return state.copy()
+        if not self._states:
+            self._states = [state] * self.history_steps
+        else:
+            self._states = [state, *self._states[:-1]]
+        return np.concatenate([*self._states, *self._actions]).astype(np.float32)
+
+    def acted(self, action: np.ndarray) -> None:
+        """Record the command given for the last observed state (clipped to [-1, 1], as the robot applies it)."""
+        if self.history_steps == 1:
+            return
+        clipped = np.clip(np.asarray(action, dtype=np.float32).reshape(ACTION_SIZE), -1.0, 1.0)
+        self._actions = [clipped, *self._actions[:-1]]

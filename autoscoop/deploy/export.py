@@ -21,7 +21,7 @@ import numpy as np
 
 from autoscoop.agents.onnx_policy import INPUT_NAME, ONNX_FORMAT, OUTPUT_NAME, OnnxPolicy
 from autoscoop.core.safe_files import write_bytes_atomically
-from autoscoop.core.state import ACTION_NAMES, STATE_NAMES, STATE_SIZE
+from autoscoop.core.state import ACTION_NAMES, ACTION_SIZE, STATE_NAMES, STATE_SIZE, actor_input_size
 from autoscoop.core.version import __version__
 
 OPSET = 17
@@ -50,7 +50,9 @@ def export_onnx(actor: Any, path: str | Path, metadata: dict[str, Any] | None = 
 
     path = Path(path)
     module = copy.deepcopy(actor).to("cpu").float().eval()
-    example = torch.zeros(1, STATE_SIZE, dtype=torch.float32)
+    history = int(getattr(actor, "history_steps", 1))
+    size = actor_input_size(history)
+    example = torch.zeros(1, size, dtype=torch.float32)
     buffer = io.BytesIO()
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", DeprecationWarning)  # the TorchScript exporter's notice
@@ -60,7 +62,11 @@ def export_onnx(actor: Any, path: str | Path, metadata: dict[str, Any] | None = 
     model = onnx.load_from_string(buffer.getvalue())
     entries = {"autoscoop_format": ONNX_FORMAT, "autoscoop_version": __version__,
                "state_names": ",".join(STATE_NAMES), "action_names": ",".join(ACTION_NAMES),
-               "input": f"{INPUT_NAME}: raw state (batch, {STATE_SIZE}) float32, autoscoop.core.state order",
+               "input": (f"{INPUT_NAME}: raw state (batch, {STATE_SIZE}) float32, autoscoop.core.state order"
+                         if history == 1 else
+                         f"{INPUT_NAME}: raw actor input (batch, {size}) float32: {history} states newest first, "
+                         f"then {history} commands newest first (autoscoop.core.state.ActorInputHistory)"),
+               **({"history_steps": str(history)} if history > 1 else {}),
                "output": f"{OUTPUT_NAME}: (batch, {len(ACTION_NAMES)}) in [-1, 1]",
                **{str(k): str(v) for k, v in (metadata or {}).items()}}
     del model.metadata_props[:]
@@ -92,13 +98,24 @@ def random_states(n: int, seed: int = 0, rated_load_kg: float = 7.0) -> np.ndarr
     return build_state(now, before, rated_load_kg).T.copy()
 
 
+def random_actor_inputs(n: int, history_steps: int = 1, seed: int = 0, rated_load_kg: float = 7.0) -> np.ndarray:
+    """``n`` random raw inputs of an actor that reads ``history_steps`` states and commands (n, size) float32:
+    :func:`random_states` for each state of the history, commands uniform in [-1, 1]; the states alone for 1."""
+    if history_steps == 1:
+        return random_states(n, seed, rated_load_kg)
+    rng = np.random.default_rng(seed)
+    states = [random_states(n, int(rng.integers(2**31)), rated_load_kg) for _ in range(history_steps)]
+    actions = rng.uniform(-1.0, 1.0, (n, history_steps * ACTION_SIZE)).astype(np.float32)
+    return np.concatenate([*states, actions], axis=1)
+
+
 def check_parity(actor: Any, onnx_path: str | Path, states: np.ndarray, timing_steps: int = 2000) -> dict[str, Any]:
     """Compare the ONNX file with the torch actor on ``states``; time one step of each.
 
     Args:
         actor: the torch module that was exported.
         onnx_path: the exported file.
-        states: (n, 12) states to compare on.
+        states: (n, size) raw actor inputs to compare on (:func:`random_actor_inputs`).
         timing_steps: single-state calls timed for each runtime.
 
     Returns:
@@ -133,12 +150,15 @@ def check_parity(actor: Any, onnx_path: str | Path, states: np.ndarray, timing_s
         with torch.no_grad():
             return module(torch.as_tensor(state).reshape(1, -1))[0].numpy()
 
+    def onnx_step(state: np.ndarray) -> np.ndarray:
+        return policy.act_batch(state.reshape(1, -1))[0]
+
     threads = torch.get_num_threads()
     torch.set_num_threads(1)
     try:
-        for fn in (policy.act, torch_step):  # warm up
+        for fn in (onnx_step, torch_step):  # warm up
             fn(states[0])
-        onnx_time, torch_time = timed(policy.act), timed(torch_step)
+        onnx_time, torch_time = timed(onnx_step), timed(torch_step)
     finally:
         torch.set_num_threads(threads)
     return {"states": int(len(states)), "max_abs_diff": diff, **rounding, "tolerance": PARITY_TOLERANCE,

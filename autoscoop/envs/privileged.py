@@ -29,7 +29,6 @@ import gymnasium as gym
 import numpy as np
 
 from autoscoop.core.config import PileConfig
-from autoscoop.core.state import STATE_SIZE
 
 PRIVILEGED_NAMES = ("true_fill", "volumetric_fill", "relative_density", "torque_mass", "sensor_delay",
                     "tip_to_pile", "tip_to_terminal", "time_used")
@@ -51,7 +50,8 @@ def privileged_features(info: dict[str, Any], config: Any) -> np.ndarray:
 
 
 class PrivilegedObservation(gym.Wrapper):
-    """Observations of STATE_SIZE + PRIVILEGED_SIZE numbers: the robot's state, then :data:`PRIVILEGED_NAMES`.
+    """Observations of the robot's state (or the actor's input of :mod:`autoscoop.envs.history`), then
+    :data:`PRIVILEGED_NAMES`.
 
     Args:
         env: an autoscoop environment (``make_scoop_env``), whose ``unwrapped.episode_config`` is the
@@ -60,8 +60,8 @@ class PrivilegedObservation(gym.Wrapper):
 
     def __init__(self, env: gym.Env) -> None:
         super().__init__(env)
-        self.observation_space = gym.spaces.Box(-np.inf, np.inf, shape=(STATE_SIZE + PRIVILEGED_SIZE,),
-                                                dtype=np.float32)
+        size = int(env.observation_space.shape[0]) + PRIVILEGED_SIZE
+        self.observation_space = gym.spaces.Box(-np.inf, np.inf, shape=(size,), dtype=np.float32)
 
     def reset(self, **kwargs: Any) -> tuple[np.ndarray, dict]:
         obs, info = self.env.reset(**kwargs)

@@ -161,6 +161,7 @@ class ScoopEnv(gym.Env):
         self._ever_inside = np.zeros(cfg.pile.n_particles, dtype=bool)
         self._previous = None
         self._previous_action = np.zeros(state_mod.ACTION_SIZE)  # the loader starts still (reward.c_action_change)
+        self._reached_pile = False  # the tip has touched the pile (reward.c_approach_height)
         self._instabilities = self.sim.instability_count()
         if cfg.env.mass_source == "torque":
             from autoscoop.sim.load_cell import TorqueMassSensor  # noqa: PLC0415 - optional until used
@@ -223,9 +224,12 @@ class ScoopEnv(gym.Env):
         # the reward's w is the counted fill factor, rounded as the state's w is (float32): with the
         # truth source the same number as obs[0]; with the torque source the true load, not the estimate
         pitch = chassis_pitch_rad(self.sim) if cfg.reward.c_pitch else 0.0
+        self._reached_pile = self._reached_pile or info["penetrating"]
+        approach_height = None if self._reached_pile else float(self.sim.tip_world[2])
         reward, terms = scoop_reward(info["tip_to_pile_m"], info["tip_to_terminal_m"], info["penetrating"],
                                      float(np.float32(info["fill_factor"])), cfg.reward, info["volumetric_fill"],
-                                     chassis_pitch_rad=pitch, command_change=change)
+                                     chassis_pitch_rad=pitch, command_change=change,
+                                     approach_height_m=approach_height)
         info.update(terms)
         terminated = info["reached"]  # the scoop ends at the terminal point, loaded or not
         return obs, float(reward), bool(terminated), False, info

@@ -13,6 +13,7 @@ from autoscoop.agents import sb3_policies
 from autoscoop.agents.networks import PAPER_LAYERS
 from autoscoop.core.config import ScoopConfig
 from autoscoop.core.state import ACTION_SIZE
+from autoscoop.envs.history import ActorInputObservation
 from autoscoop.envs.privileged import PrivilegedObservation
 from autoscoop.envs.scoop import make_scoop_env
 
@@ -25,12 +26,25 @@ def make_policy(algo: str, spec: dict[str, Any]) -> tuple[Any, dict[str, Any]]:
     """
     if spec.get("policy") != "paper":
         return "MlpPolicy", {}
+    history = {"history_steps": history_steps(spec)} if history_steps(spec) > 1 else {}
     if algo in ("ddpg", "td3"):
-        return sb3_policies.PaperPolicy, {}
+        return sb3_policies.PaperPolicy, history
     if algo == "sac":
-        return sb3_policies.PaperSACPolicy, {}
+        return sb3_policies.PaperSACPolicy, history
     return "MlpPolicy", {"net_arch": {"pi": list(PAPER_LAYERS), "vf": list(PAPER_LAYERS)},
                          "features_extractor_class": sb3_policies.NormalizedState}
+
+
+def history_steps(spec: dict[str, Any]) -> int:
+    """The YAML's ``history_steps``: how many states (and commands) the actor reads (1 without the key).
+
+    Raises:
+        ValueError: a value that is not a whole number from 1 to 8.
+    """
+    steps = spec.get("history_steps", 1)
+    if not isinstance(steps, int) or isinstance(steps, bool) or not 1 <= steps <= 8:
+        raise ValueError(f"history_steps must be a whole number from 1 to 8, got {steps!r}")
+    return steps
 
 
 def make_noise(spec: dict[str, Any], n_envs: int) -> Any:
@@ -53,18 +67,21 @@ def set_noise_scale(noise: Any, sigma: float) -> None:
             part._sigma = np.full(ACTION_SIZE, sigma)
 
 
-def make_training_env(config: ScoopConfig, privileged: bool = False) -> Any:
-    """One environment as training steps it: with ``privileged`` (the YAML's ``privileged_critic``), its
-    observations carry the simulator's privileged numbers after the state (:mod:`autoscoop.envs.privileged`)
-    for the critic; the actor reads the state only."""
+def make_training_env(config: ScoopConfig, privileged: bool = False, history: int = 1) -> Any:
+    """One environment as training steps it: with ``history`` > 1 (the YAML's ``history_steps``) its
+    observations are the actor's input of that many states and commands (:mod:`autoscoop.envs.history`);
+    with ``privileged`` (the YAML's ``privileged_critic``) they carry the simulator's privileged numbers after
+    it (:mod:`autoscoop.envs.privileged`) for the critic, while the actor reads its input only."""
     env = make_scoop_env(config)
+    if history > 1:
+        env = ActorInputObservation(env, history)
     return PrivilegedObservation(env) if privileged else env
 
 
-def make_vec_env(config: ScoopConfig, n_envs: int, seed: int, privileged: bool = False) -> Any:
+def make_vec_env(config: ScoopConfig, n_envs: int, seed: int, privileged: bool = False, history: int = 1) -> Any:
     """``n_envs`` training environments (:func:`make_training_env`; in subprocesses when more than one),
     seeded from ``seed``."""
-    factories = [partial(make_training_env, config, privileged) for _ in range(n_envs)]
+    factories = [partial(make_training_env, config, privileged, history) for _ in range(n_envs)]
     vec = SubprocVecEnv(factories, start_method="fork") if n_envs > 1 else DummyVecEnv(factories)
     vec.seed(seed)
     return vec

@@ -59,7 +59,7 @@ from autoscoop.training.checkpoints import (
     save_safe_actor,
     write_run_json,
 )
-from autoscoop.training.factories import make_noise, make_policy, make_training_env, make_vec_env
+from autoscoop.training.factories import history_steps, make_noise, make_policy, make_training_env, make_vec_env
 from autoscoop.training.hyper_ranges import check_training_settings
 from autoscoop.training.learning_curve import plot_learning_curve
 from autoscoop.training.recipes import DEFAULT_EPISODES, SHIPPED_RECIPE
@@ -143,6 +143,7 @@ def train(args: TrainArgs) -> Path:
     config = ScoopConfig().with_overrides({**(spec.get("env") or {}), **args.overrides})
     config_at(config, spec, args.episodes)  # a curriculum's stages are checked before anything starts
     check_training_settings(spec, args.n_envs)
+    history_steps(spec)  # a bad history is refused before a run directory is made
     init_path = init_source(args.init_from, args.algo, args.trust) if args.init_from else None
     run_dir = Path(args.out) if args.out else _default_run_dir(args)
     created = not run_dir.exists()
@@ -211,7 +212,8 @@ def _continue(run_dir: Path, progress: bool, on_evaluation: Callable[[Evaluation
         return _run(run_dir, config, spec, info, done=0, model=None, progress=progress, on_evaluation=on_evaluation)
     checkpoint, state = found
     done = state["episodes_done"]
-    env = make_vec_env(config_at(config, spec, done), info["n_envs"], info["seed"] + done, privileged_critic(spec))
+    env = make_vec_env(config_at(config, spec, done), info["n_envs"], info["seed"] + done, privileged_critic(spec),
+                       history_steps(spec))
     model = _build_model(run_dir, env, spec, info, seed=info["seed"] + done)
     try:
         load_checkpoint(model, checkpoint, state)
@@ -248,14 +250,15 @@ def _build_model(run_dir: Path, env: Any, spec: dict[str, Any], info: dict[str, 
 def _new_model(run_dir: Path, config: ScoopConfig, spec: dict[str, Any], info: dict[str, Any],
                trust: bool = False) -> Any:
     """A fresh model on new environments: the initial run's weights when fine-tuning, demonstrations when asked."""
-    env = make_vec_env(config, info["n_envs"], info["seed"], privileged_critic(spec))
+    env = make_vec_env(config, info["n_envs"], info["seed"], privileged_critic(spec), history_steps(spec))
     try:
         model = _build_model(run_dir, env, spec, info, seed=info["seed"])
         if info.get("init_from"):
             load_init_weights(model, Path(info["init_from"]), info["init_sha256"], trust)
         if info.get("demo_episodes"):
             added = add_scripted_demonstrations(model.replay_buffer, config, info["demo_episodes"],
-                                                make_env=partial(make_training_env, privileged=privileged_critic(spec)))
+                                                make_env=partial(make_training_env, privileged=privileged_critic(spec),
+                                                                 history=history_steps(spec)))
             print(f"replay buffer: {added} transitions of {info['demo_episodes']} scripted scoops", file=sys.stderr)
     except BaseException:
         env.close()
@@ -274,7 +277,8 @@ def _run(run_dir: Path, config: ScoopConfig, spec: dict[str, Any], info: dict[st
         model = _new_model(run_dir, config, spec, info)
     evaluator = PolicyEvaluator(run_dir, config_at(config, spec, done), info.get("eval_every", 50),
                                 info.get("eval_episodes", 10), info, done=evaluations_done,
-                                make_env=partial(make_training_env, privileged=privileged_critic(spec)),
+                                make_env=partial(make_training_env, privileged=privileged_critic(spec),
+                                                 history=history_steps(spec)),
                                 observers=[on_evaluation] if on_evaluation else ()
                                 ) if info.get("eval_every", 50) > 0 else None
     worlds = {episode: config_at(config, spec, episode) for episode, _ in curriculum_stages(spec) if episode > done}
