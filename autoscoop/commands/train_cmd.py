@@ -99,15 +99,13 @@ def run(args: argparse.Namespace) -> int:
 
 def selection_pending(run_dir: Path) -> bool:
     """Whether the run's recipe has a ``selection`` section and the run has not made its choice yet."""
-    import yaml  # noqa: PLC0415
-
-    from autoscoop.training.checkpoints import SELECTION_FILE  # noqa: PLC0415 - torch is slow to import
+    from autoscoop.training.checkpoints import SELECTION_FILE, read_run_yaml  # noqa: PLC0415 - torch is slow to import
     from autoscoop.training.settings import selection_settings  # noqa: PLC0415
 
     spec_path = run_dir / "hyperparams.yaml"
     if not spec_path.is_file() or (run_dir / SELECTION_FILE).exists():
         return False
-    return selection_settings(yaml.safe_load(spec_path.read_text()) or {}) is not None
+    return selection_settings(read_run_yaml(run_dir, "hyperparams.yaml") or {}) is not None
 
 
 def rank_run_snapshots(run_dir: Path, settings: SelectionSettings,
@@ -122,13 +120,11 @@ def rank_run_snapshots(run_dir: Path, settings: SelectionSettings,
     """
     import os  # noqa: PLC0415
 
-    import yaml  # noqa: PLC0415
-
     from autoscoop.evaluation.selection import rank_candidates  # noqa: PLC0415 - torch is slow to import
-    from autoscoop.training.checkpoints import snapshot_candidates  # noqa: PLC0415
+    from autoscoop.training.checkpoints import read_run_yaml, snapshot_candidates  # noqa: PLC0415
     from autoscoop.training.settings import curriculum_stages  # noqa: PLC0415
 
-    stages = curriculum_stages(yaml.safe_load((run_dir / "hyperparams.yaml").read_text()) or {})
+    stages = curriculum_stages(read_run_yaml(run_dir, "hyperparams.yaml") or {})
     last_world_from = stages[-1][0] if stages else 0
     candidates = snapshot_candidates(run_dir, settings.candidates, last_world_from)
     if not candidates:
@@ -145,12 +141,14 @@ def select_kept_policy(run_dir: Path, progress: bool = True) -> None:
     records each candidate's figures."""
     import time  # noqa: PLC0415
 
-    import yaml  # noqa: PLC0415
-
-    from autoscoop.training.checkpoints import keep_snapshot, lock_run_dir  # noqa: PLC0415 - torch is slow to import
+    from autoscoop.training.checkpoints import (  # noqa: PLC0415 - torch is slow to import
+        keep_snapshot,
+        lock_run_dir,
+        read_run_yaml,
+    )
     from autoscoop.training.settings import selection_settings  # noqa: PLC0415
 
-    settings = selection_settings(yaml.safe_load((run_dir / "hyperparams.yaml").read_text()))
+    settings = selection_settings(read_run_yaml(run_dir, "hyperparams.yaml"))
     started = time.time()
     with lock_run_dir(run_dir):
         candidates, ranked, last_world_from = rank_run_snapshots(run_dir, settings, progress=progress)

@@ -8,7 +8,6 @@ counters and how its tensors nest, each file's SHA-256), ``tensors.safetensors``
 from __future__ import annotations
 
 import csv
-import json
 import math
 import os
 import shutil
@@ -30,7 +29,7 @@ from autoscoop.agents.policy_files import (
     save_actor,
     sha256_of,
 )
-from autoscoop.core.safe_files import quote, read_json, write_json_atomically, write_text_atomically
+from autoscoop.core.safe_files import quote, read_json, read_yaml, write_json_atomically, write_text_atomically
 from autoscoop.core.version import __version__
 from autoscoop.training.model_state import BUFFER_FILE, TENSORS_FILE, load_model_state, save_model_state
 
@@ -56,6 +55,8 @@ def actor_meta(info: dict[str, Any], run_dir: Path) -> dict[str, Any]:
             "state_frame": info.get("state_frame", "chassis")}
 
 
+MAX_STATE_BYTES = 16 << 20
+"""cap of a checkpoint's ``state.json``, bytes."""
 CHECKPOINT_FORMAT = "autoscoop-checkpoint/2"
 """``state.json``'s ``format``: tensors in safetensors, the replay buffer in ``.npz``, the rest JSON; no pickle."""
 CHECKPOINT_DIRS = ("checkpoint", "checkpoint.tmp", "checkpoint.old")
@@ -122,10 +123,7 @@ def read_checkpoint_state(checkpoint: Path, algo: str) -> dict[str, Any]:
             (SHA-256); the message names the file.
     """
     path = checkpoint / "state.json"
-    try:
-        state = json.loads(path.read_text())
-    except (OSError, ValueError, RecursionError) as error:
-        raise ValueError(f"{path}: not readable as JSON ({error})") from None
+    state = read_json(path, "checkpoint state", MAX_STATE_BYTES)
     if not isinstance(state, dict) or state.get("format") != CHECKPOINT_FORMAT:
         found = state.get("format") if isinstance(state, dict) else None
         raise ValueError(f"{path}: checkpoint format {found!r}, expected {CHECKPOINT_FORMAT!r}. Older checkpoints keep "
@@ -307,6 +305,16 @@ def write_run_json(run_dir: Path, info: dict[str, Any]) -> None:
     write_json_atomically(run_dir / "run.json", info)
 
 
+def read_run_yaml(run_dir: Path, name: str) -> Any:
+    """A YAML file of a run directory (``config.yaml``, ``hyperparams.yaml``), read within bounds
+    (:func:`autoscoop.core.safe_files.read_yaml`).
+
+    Raises:
+        ValueError: missing, too large or not accepted YAML (the message names the file).
+    """
+    return read_yaml(Path(run_dir) / name, "run file")
+
+
 def read_run_json(run_dir: Path) -> dict[str, Any]:
     """A run directory's ``run.json``.
 
@@ -330,7 +338,7 @@ HOLDER_FILE = "lock.json"
 
 def _holder_text(run_dir: Path) -> str:
     try:
-        holder = json.loads((run_dir / HOLDER_FILE).read_text())
+        holder = read_json(run_dir / HOLDER_FILE, "lock holder", 4096)
         return f"pid {holder['pid']} on {holder['host']}, since {holder['started']}"
     except (OSError, ValueError, KeyError, TypeError):
         return f"holder unknown: {run_dir / HOLDER_FILE} is missing or unreadable"

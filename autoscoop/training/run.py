@@ -54,6 +54,7 @@ from autoscoop.training.checkpoints import (
     load_init_weights,
     lock_run_dir,
     read_run_json,
+    read_run_yaml,
     remove_checkpoints,
     restore_to_checkpoint,
     save_safe_actor,
@@ -202,8 +203,8 @@ def _continue(run_dir: Path, progress: bool, on_evaluation: Callable[[Evaluation
     if missing:
         raise ValueError(f"cannot resume {run_dir}: missing {' and '.join(missing)} (a run directory holds "
                          "run.json, config.yaml and hyperparams.yaml)")
-    spec = yaml.safe_load((run_dir / "hyperparams.yaml").read_text())
-    config = from_dict(yaml.safe_load((run_dir / "config.yaml").read_text()))
+    spec = read_run_yaml(run_dir, "hyperparams.yaml")
+    config = from_dict(read_run_yaml(run_dir, "config.yaml"))
     found = find_checkpoint(run_dir, info["algo"])
     if found is None:  # killed before its first checkpoint: start again, as if new
         clear_run_outputs(run_dir)

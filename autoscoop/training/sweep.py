@@ -18,7 +18,6 @@ others continue their run directories (:mod:`autoscoop.training.sweep_trial`).
 
 from __future__ import annotations
 
-import json
 import logging
 import os
 import socket
@@ -28,7 +27,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from autoscoop.core.safe_files import write_json_atomically
+from autoscoop.core.safe_files import read_json, write_json_atomically
 from autoscoop.core.version import __version__
 from autoscoop.training.sweep_results import TrialRow, collect_row
 from autoscoop.training.sweep_space import Distribution, SweepSpace, check_episodes, plan_trials, space_from_dict
@@ -37,6 +36,8 @@ from autoscoop.training.sweep_trial import run_trial
 PLAN_FILE = "sweep_plan.json"
 """the sweep's settings and driver runs, in ``OUT``."""
 PLAN_FORMAT = "autoscoop-sweep/1"
+MAX_PLAN_BYTES = 16 << 20
+"""cap of a sweep plan file, bytes."""
 TUNE_NAME = "tune"
 """Tune's experiment folder, in ``OUT``."""
 RUNS_DIR = "runs"
@@ -122,10 +123,7 @@ def read_plan(out: Path) -> dict[str, Any]:
     path = Path(out) / PLAN_FILE
     if not path.is_file():
         raise ValueError(f"--out {out}: holds no sweep to resume (no {PLAN_FILE}); start one without --resume")
-    try:
-        plan = json.loads(path.read_text())
-    except ValueError as error:
-        raise ValueError(f"{path}: not readable as JSON ({error})") from None
+    plan = read_json(path, "sweep plan", MAX_PLAN_BYTES)
     if not isinstance(plan, dict) or plan.get("format") != PLAN_FORMAT:
         raise ValueError(f"{path}: not an autoscoop sweep plan (format {PLAN_FORMAT!r})")
     return plan
