@@ -12,28 +12,21 @@ stamp with the ROS clock (``rospy.get_time()``) at arrival, so the watchdog judg
 
 from __future__ import annotations
 
-import threading
 import time
 from collections.abc import Callable
 from typing import Any
 
-from autoscoop.core.payload import pitch_from_quaternion
 from autoscoop.deploy.controller import ControllerCore, payload_inputs
+from autoscoop.deploy.controller_loop import ControllerLoop, status_line
 from autoscoop.deploy.ros1 import import_rospy, publishers, subscribers
-from autoscoop.deploy.safety import Command, Stamp
+from autoscoop.deploy.safety import Command
 
 NODE_NAME = "autoscoop_controller"
-LONGEST_SLEEP_S = 0.1
-"""The loop never sleeps longer than this, so a shutdown is noticed quickly."""
 
 
-class ControllerNode:
-    """The rospy front end of a :class:`ControllerCore`: one callback per input, :meth:`spin` for the loop.
-
-    Every callback hands its message to the core under one lock with the time it arrived (and its
-    stamp, where it has a header), and wakes the loop when the message may stop the robot (a refused
-    reading, ``estop``, ``scoop``); the loop runs
-    :meth:`ControllerCore.update` at the core's wake-up times and publishes what it returns.
+class ControllerNode(ControllerLoop):
+    """The rospy front end of a :class:`ControllerCore`: the callbacks and the loop of
+    :class:`~autoscoop.deploy.controller_loop.ControllerLoop` on rospy's topics.
 
     Args:
         core: the controller's logic, built and checked.
@@ -44,15 +37,10 @@ class ControllerNode:
 
     def __init__(self, core: ControllerCore, argv: list[str] | None = None, node_name: str = NODE_NAME,
                  clock: Callable[[], float] = time.monotonic) -> None:
+        super().__init__(core, node_name, clock)
         self.rospy = rospy = import_rospy()
         from std_msgs.msg import String  # noqa: PLC0415
 
-        self.core = core
-        self.clock = clock
-        self.node_name = node_name
-        self.lock = threading.Lock()
-        """held while the core is used: the callbacks run on rospy's threads"""
-        self.wake = threading.Event()
         self.last_status: str | None = None
         rospy.init_node(node_name, argv=argv, anonymous=False)
         levels = {"info": rospy.loginfo, "warn": rospy.logwarn, "error": rospy.logerr}
@@ -62,69 +50,21 @@ class ControllerNode:
         self.commands = publishers(topics, ("cmd_vel", "lift_command", "tilt_command"), queue_size=10,
                                    tcp_nodelay=False)
         self.status = rospy.Publisher("~status", String, queue_size=10, latch=True)
-        payload = {"bucket_torque": self.on_tilt_torque, "lift_torque": self.on_lift_torque,
-                   "payload_mass": self.on_mass}
-        needed = payload_inputs(core.config.payload)
-        self.subscribers = subscribers(topics, {
-            "joint_states": self.on_joint_states, "odom": self.on_odom, "pile_range": self.on_range,
-            **{name: callback for name, callback in payload.items() if name in needed},
-            "estop": self.on_estop, "scoop": self.on_scoop})
+        self.subscribers = subscribers(topics, self.input_callbacks(payload_inputs(core.config.payload)))
 
-    # ---------------------------------------------------------------- callbacks (rospy's threads)
-    def _stamped(self, name: str, header: Any, handler: Callable[[float, Stamp], bool]) -> None:
-        """Feed a message with a header: its stamp and the ROS clock are read with the arrival time; the
-        transport delay (stamp -> arrival) of each reading taken is noted for the records."""
-        def with_stamp(now: float) -> bool:
-            stamp = Stamp(header.stamp.to_sec(), self.rospy.get_time())
-            taken = handler(now, stamp)
-            if taken:
-                self.core.transport_delay(name, stamp.age_s)
-            return taken
-        self._feed(with_stamp)
+    # ---------------------------------------------------------------- ControllerLoop's hooks
+    def header_seconds(self, header: Any) -> float:
+        return header.stamp.to_sec()
 
-    def _feed(self, handler: Callable[[float], bool | None], always_wake: bool = False) -> None:
-        with self.lock:
-            ok = handler(self.clock())
-        if always_wake or ok is False:
-            self.wake.set()
+    def ros_time(self) -> float:
+        return self.rospy.get_time()
 
-    def on_joint_states(self, msg: Any) -> None:
-        """``sensor_msgs/JointState``."""
-        self._stamped("joint_states", msg.header,
-                      lambda now, stamp: self.core.joint_states(msg.name, msg.position, now, stamp))
+    def shutting_down(self) -> bool:
+        return self.rospy.is_shutdown()
 
-    def on_odom(self, msg: Any) -> None:
-        """``nav_msgs/Odometry``: the forward speed, and the chassis pitch of the orientation."""
-        q = msg.pose.pose.orientation
-        self._stamped("odom", msg.header, lambda now, stamp: self.core.odometry(
-            msg.twist.twist.linear.x, now, pitch_from_quaternion(q.w, q.x, q.y, q.z), stamp))
+    def log_info(self, text: str) -> None:
+        self.rospy.loginfo(text)
 
-    def on_range(self, msg: Any) -> None:
-        """``sensor_msgs/Range``."""
-        self._stamped("pile_range", msg.header, lambda now, stamp: self.core.pile_range(
-            msg.range, now, msg.min_range, msg.max_range, stamp))
-
-    def on_tilt_torque(self, msg: Any) -> None:
-        """``std_msgs/Float64`` on ``bucket_torque``: the tilt torque, N*m."""
-        self._feed(lambda now: self.core.bucket_torque(msg.data, now))
-
-    def on_lift_torque(self, msg: Any) -> None:
-        """``std_msgs/Float64`` on ``lift_torque``, N*m."""
-        self._feed(lambda now: self.core.lift_torque(msg.data, now))
-
-    def on_mass(self, msg: Any) -> None:
-        """``std_msgs/Float64`` on ``payload_mass``, kg."""
-        self._feed(lambda now: self.core.payload_mass(msg.data, now))
-
-    def on_estop(self, msg: Any) -> None:
-        """``std_msgs/Bool``."""
-        self._feed(lambda now: self.core.estop(msg.data, now), always_wake=True)
-
-    def on_scoop(self, msg: Any) -> None:
-        """``std_msgs/Bool``."""
-        self._feed(lambda now: self.core.scoop(msg.data, now), always_wake=True)
-
-    # ---------------------------------------------------------------- the loop
     def publish(self, command: Command) -> None:
         """Publish a command: the speed always, the arm when it has one, the status when it changed."""
         from geometry_msgs.msg import Twist  # noqa: PLC0415
@@ -136,26 +76,15 @@ class ControllerNode:
         if command.lift_rad is not None:
             self.commands["lift_command"].publish(Float64(command.lift_rad))
             self.commands["tilt_command"].publish(Float64(command.tilt_rad))
-        text = command.mode + (f": {command.reason}" if command.reason else "")
+        text = status_line(command)
         if text != self.last_status:
             self.status.publish(String(text))
             self.last_status = text
 
     def spin(self) -> int:
         """Run until ROS shuts down; the exit code. Ends a running scoop (its record is written) on the way out."""
-        rospy, core, clock = self.rospy, self.core, self.clock
-        rospy.loginfo(f"{self.node_name}: policy {core.policy_name}, control period {core.period_s:g} s, "
-                      f"input timeout {core.config.control.input_timeout_s:g} s; waiting for inputs")
         try:
-            while not rospy.is_shutdown():
-                self.wake.clear()
-                with self.lock:
-                    now = clock()
-                    command = core.update(now)
-                    wake_at = core.next_wakeup(now)
-                if command is not None:
-                    self.publish(command)
-                self.wake.wait(min(max(wake_at - clock(), 0.0), LONGEST_SLEEP_S))
+            self.run_loop()
         finally:
             self.close()
         return 0

@@ -8,57 +8,23 @@ episode starts, false when it ends. Obeys ``cmd_vel``, ``lift_controller/command
 publishes the new scene's readings (so the controller's inputs are fresh), then starts the next
 episode; commands that arrive while it is held are ignored.
 
-The episode's physics starts half a sensor period after the controller's first command: the
-controller's later commands (one per control period, on its own clock) then arrive between two
-physics steps, not on their edges, and each takes effect at the start of a control period, as in
-the environment. Without that, whether a command lands one step earlier or later is a coin toss
-that the scripted baseline, which dead-reckons from odometry, is sensitive to.
+The episodes' timing is :class:`~autoscoop.deploy.sim_loop.SimLoop`'s.
 """
 
 from __future__ import annotations
 
-import math
-import threading
 import time
-from collections.abc import Callable
-from dataclasses import dataclass, field
 from typing import Any
 
-import numpy as np
-
 from autoscoop.deploy.ros1 import import_rospy, publishers, subscribers
-from autoscoop.deploy.sim_bridge import DelayLine, SensorReadings, SimBridge
-from autoscoop.envs.outcome import EpisodeOutcome
+from autoscoop.deploy.sim_bridge import SensorReadings, SimBridge
+from autoscoop.deploy.sim_loop import SimLoop
 
 NODE_NAME = "autoscoop_sim"
-SETTLE_S = 0.5
-"""Readings of a reset scene are published this long (plus the delay) before the episode starts."""
-FIRST_COMMAND_TIMEOUT_S = 2.0
-"""After ``scoop`` true, the physics waits this long at most for the controller's first command."""
 
 
-@dataclass
-class SimRunStats:
-    """How the node kept time: per episode, the simulated and the wall-clock duration."""
-
-    sim_s: list[float] = field(default_factory=list)
-    wall_s: list[float] = field(default_factory=list)
-    late_steps: int = 0
-    controller_policy: str | None = None
-    """the controller's ``~policy`` parameter, when it is the autoscoop controller."""
-
-    def as_dict(self) -> dict[str, float]:
-        sim, wall = float(np.sum(self.sim_s)), float(np.sum(self.wall_s))
-        return {"simulated_s": sim, "wall_s": wall, "real_time_factor": sim / wall if wall > 0 else math.nan,
-                "late_steps": self.late_steps}
-
-
-class SimNode:
-    """The simulator behind the robot's topics: one method per callback and per phase of an episode.
-
-    Commands (``cmd_vel``, ``lift_controller/command``, ``tilt_controller/command``) arrive on rospy's
-    threads and queue under :attr:`lock` while the episode is live; :meth:`run` applies them in order
-    before each physics step and publishes each step's readings through a :class:`DelayLine`.
+class SimNode(SimLoop):
+    """The simulator behind the robot's ROS 1 topics: :class:`~autoscoop.deploy.sim_loop.SimLoop` on rospy.
 
     Args:
         bridge: the simulator.
@@ -69,52 +35,16 @@ class SimNode:
 
     def __init__(self, bridge: SimBridge, delay_s: float | None = None, argv: list[str] | None = None,
                  node_name: str = NODE_NAME) -> None:
+        super().__init__(bridge, delay_s)
         self.rospy = rospy = import_rospy()
-        self.bridge = bridge
-        self.delay_s = bridge.task_config.sensor.delay_s if delay_s is None else delay_s
-        self.topics = topics = bridge.robot.topics
-        self.lock = threading.Lock()
-        self.arrived: list[tuple[str, float]] = []
-        """commands received since the last step, applied in order before the next one"""
-        self.first_arrival: float | None = None
-        """when the episode's first command arrived (monotonic s)"""
-        self.live = threading.Event()
-        """set while an episode runs: commands are taken only then"""
-        self.line = DelayLine(self.delay_s)
-        self.stats = SimRunStats()
+        topics = self.topics
         rospy.init_node(node_name, argv=argv, anonymous=False)
         self.sensors = publishers(topics, ("joint_states", "odom", "pile_range", "bucket_torque", "lift_torque",
                                            "payload_mass"))
         self.scoop = publishers(topics, ("scoop",), queue_size=10)["scoop"]
-        self.subscribers = subscribers(topics, {"cmd_vel": self.on_speed, "lift_command": self.on_lift,
-                                                "tilt_command": self.on_tilt})
+        self.subscribers = subscribers(topics, self.command_callbacks())
 
-    # ---------------------------------------------------------------- commands (rospy's threads)
-    def _command(self, name: str, value: float) -> None:
-        if self.live.is_set():
-            with self.lock:
-                self.arrived.append((name, float(value)))
-                if self.first_arrival is None:
-                    self.first_arrival = time.monotonic()
-
-    def on_speed(self, msg: Any) -> None:
-        """``geometry_msgs/Twist`` on ``cmd_vel``: ``linear.x``, m/s."""
-        self._command("speed", msg.linear.x)
-
-    def on_lift(self, msg: Any) -> None:
-        """``std_msgs/Float64`` on the lift command, rad."""
-        self._command("lift", msg.data)
-
-    def on_tilt(self, msg: Any) -> None:
-        """``std_msgs/Float64`` on the tilt command, rad."""
-        self._command("tilt", msg.data)
-
-    def _take_commands(self) -> list[tuple[str, float]]:
-        with self.lock:
-            received, self.arrived = self.arrived, []
-        return received
-
-    # ---------------------------------------------------------------- sensors
+    # ---------------------------------------------------------------- SimLoop's hooks
     def messages(self, r: SensorReadings) -> list[tuple[str, object]]:
         """The sensor messages of one set of readings, stamped now."""
         from nav_msgs.msg import Odometry  # noqa: PLC0415
@@ -137,37 +67,26 @@ class SimNode:
                 ("bucket_torque", Float64(r.tilt_torque_nm)), ("lift_torque", Float64(r.lift_torque_nm)),
                 ("payload_mass", Float64(r.payload_kg))]
 
-    def sample(self, r: SensorReadings) -> None:
-        """Queue the messages of ``r`` on the delay line."""
-        now = time.monotonic()
-        for item in self.messages(r):
-            self.line.push(now, item)
+    def publish_sensor(self, name: str, msg: Any) -> None:
+        self.sensors[name].publish(msg)
 
-    def publish_due(self) -> None:
-        """Publish the messages whose delay has passed."""
-        for name, msg in self.line.pop_due(time.monotonic()):
-            self.sensors[name].publish(msg)
+    def publish_scoop(self, start: bool) -> None:
+        from std_msgs.msg import Bool  # noqa: PLC0415
 
-    def wait_until(self, deadline: float) -> None:
-        """Publish due messages until ``deadline`` (monotonic s)."""
-        while not self.rospy.is_shutdown():
-            now = time.monotonic()
-            self.publish_due()
-            if now >= deadline:
-                return
-            time.sleep(max(0.0, min(deadline, self.line.next_due()) - time.monotonic()))
+        self.scoop.publish(Bool(start))
 
-    def first_command(self, deadline: float) -> float:
-        """When the controller's first command of the episode arrived (or the deadline, if none did)."""
-        while time.monotonic() < deadline and not self.rospy.is_shutdown():
-            self.publish_due()
-            with self.lock:
-                if self.first_arrival is not None:
-                    return self.first_arrival
-            time.sleep(0.0005)
-        return deadline
+    def shutting_down(self) -> bool:
+        return self.rospy.is_shutdown()
 
-    # ---------------------------------------------------------------- episodes
+    def log_info(self, text: str) -> None:
+        self.rospy.loginfo(text)
+
+    def close_transport(self) -> None:
+        for subscriber in self.subscribers.values():
+            subscriber.unregister()
+        if not self.rospy.is_shutdown():
+            self.rospy.signal_shutdown("simulation finished")
+
     def wait_for_controller(self, timeout_s: float) -> None:
         """Wait until a controller subscribes to ``scoop``; note its ``~policy`` parameter if it has one."""
         rospy = self.rospy
@@ -183,81 +102,6 @@ class SimNode:
                 break
             except KeyError:
                 continue
-
-    def episode(self, seed: int) -> tuple[EpisodeOutcome | None, float]:
-        """One episode: reset and settle, ``scoop`` true, physics in real time, ``scoop`` false.
-
-        Returns:
-            The outcome (``None`` when ROS shut down before the episode ended) and the simulated time, s.
-        """
-        from std_msgs.msg import Bool  # noqa: PLC0415
-
-        rospy, bridge, period = self.rospy, self.bridge, self.bridge.sensor_period_s
-        self.live.clear()
-        readings = bridge.reset(seed)
-        with self.lock:
-            self.arrived.clear()
-            self.first_arrival = None
-        hold_until = time.monotonic() + SETTLE_S + self.delay_s
-        tick = time.monotonic()
-        while time.monotonic() < hold_until and not rospy.is_shutdown():
-            self.sample(readings)
-            tick += period
-            self.wait_until(tick)
-        self.live.set()
-        self.scoop.publish(Bool(True))
-        tick = self.first_command(time.monotonic() + FIRST_COMMAND_TIMEOUT_S) + period / 2
-        self.wait_until(tick)
-        start_wall = time.monotonic()
-        while not bridge.done and not rospy.is_shutdown():
-            for name, value in self._take_commands():
-                if name == "speed":
-                    bridge.command_speed(value)
-                else:
-                    bridge.command_joint(name, value)
-            readings = bridge.step()
-            self.sample(readings)
-            tick += period
-            if time.monotonic() > tick:
-                self.stats.late_steps += 1
-                tick = max(tick, time.monotonic() - 2 * period)  # behind: catch up a little, never in a burst
-            self.wait_until(tick)
-        self.live.clear()
-        self.scoop.publish(Bool(False))
-        if not bridge.done:
-            return None, readings.time_s
-        self.stats.sim_s.append(readings.time_s)
-        self.stats.wall_s.append(time.monotonic() - start_wall)
-        return bridge.result(), readings.time_s
-
-    def run(self, episodes: int, seed: int = 0, wait_for_controller_s: float = 60.0,
-            on_episode: Callable[[EpisodeOutcome], None] | None = None) -> tuple[list[EpisodeOutcome], SimRunStats]:
-        """Run ``episodes`` episodes (0: until shut down), seeds ``seed``, ``seed + 1``, ...; then unsubscribe.
-
-        Returns:
-            The episodes' outcomes and the timing statistics.
-        """
-        rospy = self.rospy
-        results: list[EpisodeOutcome] = []
-        try:
-            self.wait_for_controller(wait_for_controller_s)
-            index = 0
-            while not rospy.is_shutdown() and (episodes == 0 or index < episodes):
-                result, sim_s = self.episode(seed + index)
-                if result is None:
-                    break
-                results.append(result)
-                rospy.loginfo(f"episode {index} (seed {result.seed}): fill {result.fill_factor:.2f}, "
-                              f"success {result.success}, {sim_s:.2f} s")
-                if on_episode is not None:
-                    on_episode(result)
-                index += 1
-        finally:
-            for subscriber in self.subscribers.values():
-                subscriber.unregister()
-            if not rospy.is_shutdown():
-                rospy.signal_shutdown("simulation finished")
-        return results, self.stats
 
 
 def _publishers_of(rospy, topic: str) -> list[str]:
