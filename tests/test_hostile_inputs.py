@@ -19,9 +19,12 @@ from pathlib import Path
 import gymnasium as gym
 import numpy as np
 import pytest
+from filelock import FileLock
 
 from autoscoop.cli import main
+from autoscoop.commands import RECORDS_LOCK
 from autoscoop.core import safe_files
+from autoscoop.envs.records import STEP_FIELDS
 
 MARKER = "pwned"
 """the file a crafted pickle creates, in the case's folder."""
@@ -265,6 +268,240 @@ def _policy_case(command: str, kind: str) -> Case:
 
 
 CASES += [_policy_case(command, kind) for command in ("eval", "export", "ros-check") for kind in HOSTILE_POLICIES]
+
+
+# --------------------------------------------------------------------------------------------- records
+STEPS = 4
+
+
+def _fields(**changes) -> dict[str, np.ndarray]:
+    widths = {"state": 12, "action": 3, "tip_world_m": 3}
+    arrays = {name: np.zeros((STEPS, widths[name]) if name in widths else STEPS) for name in STEP_FIELDS}
+    arrays["time_s"] = np.arange(1, STEPS + 1) * 0.25
+    arrays.update(changes)
+    return arrays
+
+
+def _record(path: Path, meta: object = None, raw_meta: str | None = None, **changes) -> Path:
+    meta = {"policy": "crafted", "seed": 0, "autoscoop_version": "0.1.0"} if meta is None else meta
+    np.savez(path, meta=np.array(raw_meta if raw_meta is not None else json.dumps(meta)), **_fields(**changes))
+    return path
+
+
+def _zip_bomb(path: Path) -> Path:
+    """A record whose arrays claim gigabytes once decompressed (zeros compress to almost nothing)."""
+    fields = _fields()
+    with zipfile.ZipFile(path, "w", zipfile.ZIP_DEFLATED) as archive:
+        for name, array in fields.items():
+            with archive.open(f"{name}.npy", "w", force_zip64=True) as handle:
+                np.lib.format.write_array(handle, array)
+        with archive.open("meta.npy", "w", force_zip64=True) as handle:
+            np.lib.format.write_array(handle, np.array(json.dumps({"policy": "x"})))
+        with archive.open("pad.npy", "w", force_zip64=True) as handle:
+            for _ in range(300):
+                handle.write(bytes(1 << 20))
+    return path
+
+
+def _saved(path: Path, **arrays: np.ndarray) -> Path:
+    np.savez(path, **arrays)
+    return path
+
+
+def _written(path: Path, data: bytes) -> Path:
+    path.write_bytes(data)
+    return path
+
+
+def _pickled(path: Path) -> Path:
+    fields = _fields()
+    fields["state"] = np.array([_Exploit(path.parent / MARKER)] * STEPS, dtype=object)
+    np.savez(path, meta=np.array("{}"), **fields)
+    return path
+
+
+HOSTILE_RECORDS: dict[str, tuple[Callable[[Path], Path], str]] = {
+    "future-version": (lambda p: _record(p, {"autoscoop_version": "99.0.0"}), "99.0.0"),
+    "not-a-version": (lambda p: _record(p, {"autoscoop_version": "banana"}), "autoscoop_version"),
+    "nan-state": (lambda p: _record(p, state=np.full((STEPS, 12), np.nan)), "state"),
+    "inf-reward": (lambda p: _record(p, reward=np.array([0, np.inf, 0, 0])), "reward"),
+    "nan-time": (lambda p: _record(p, time_s=np.array([0.25, np.nan, 0.75, 1.0])), "time_s"),
+    "empty": (lambda p: _record(p, **{name: array[:0] for name, array in _fields().items()}), "empty"),
+    "ragged": (lambda p: _record(p, action=np.zeros((STEPS + 3, 3))), "action"),
+    "wrong-width": (lambda p: _record(p, state=np.zeros((STEPS, 5))), "state"),
+    "scalar-field": (lambda p: _record(p, reward=np.float64(1.0)), "reward"),
+    "text-field": (lambda p: _record(p, reward=np.array(["a", "b", "c", "d"])), "reward"),
+    "meta-list": (lambda p: _record(p, meta=[1, 2]), "meta"),
+    "meta-not-json": (lambda p: _record(p, raw_meta="{policy: "), "record"),
+    "meta-deep": (lambda p: _record(p, raw_meta="[" * 100_000 + "]" * 100_000), "record"),
+    "missing-field": (lambda p: _saved(p, meta=np.array("{}"), time_s=np.zeros(2)), "missing"),
+    "pickled-array": (_pickled, "record"),
+    "zip-bomb": (_zip_bomb, "decompress"),
+    "garbage": (lambda p: _written(p, b"PK\x03\x04 garbage" * 100), "record"),
+    "truncated": (lambda p: _written(p, _record(p).read_bytes()[:300]), "record"),
+}
+RECORD_COMMANDS: dict[str, Callable[[Path, Path], list[str]]] = {
+    "report": lambda record, tmp: ["report", record, "--out", tmp / "new"],
+    "report-folder": lambda record, tmp: ["report", record.parent, "--out", tmp / "new"],
+    "payload-calibrate": lambda record, tmp: ["payload", "calibrate", record, "--out", tmp / "new" / "cal.yaml"],
+}
+
+
+def _record_case(command: str, kind: str) -> Case:
+    make, expected = HOSTILE_RECORDS[kind]
+
+    def build(tmp: Path) -> Probe:
+        folder = tmp / "records"
+        folder.mkdir()
+        record = make(folder / "episode_00000.npz")
+        return Probe(RECORD_COMMANDS[command](record, tmp), [str(record), expected], keep=[record],
+                     absent=[tmp / "new"])
+    return Case(f"record-{command}-{kind}", build)
+
+
+CASES += [_record_case(command, kind) for command in RECORD_COMMANDS for kind in HOSTILE_RECORDS]
+
+
+# ----------------------------------------------------------------------------------- training settings
+HOSTILE_HYPER = {
+    "batch-zero": ("hyperparams.batch_size=0", "hyperparams.batch_size"),
+    "batch-negative": ("hyperparams.batch_size=-5", "hyperparams.batch_size"),
+    "gamma-two": ("hyperparams.gamma=2.0", "hyperparams.gamma"),
+    "gamma-zero": ("hyperparams.gamma=0.0", "hyperparams.gamma"),
+    "lr-nan": ("hyperparams.learning_rate=nan", "hyperparams.learning_rate"),
+    "lr-inf": ("hyperparams.learning_rate=inf", "hyperparams.learning_rate"),
+    "lr-negative": ("hyperparams.learning_rate=-0.001", "hyperparams.learning_rate"),
+    "tau-zero": ("hyperparams.tau=0.0", "hyperparams.tau"),
+    "buffer-zero": ("hyperparams.buffer_size=0", "hyperparams.buffer_size"),
+    "train-freq-zero": ("hyperparams.train_freq=0", "hyperparams.train_freq"),
+    "gradient-steps-zero": ("hyperparams.gradient_steps=0", "hyperparams.gradient_steps"),
+    "learning-starts-negative": ("hyperparams.learning_starts=-1", "hyperparams.learning_starts"),
+    "sigma-negative": ("noise.sigma_start=-0.1", "noise.sigma_start"),
+    "theta-zero": ("noise.theta=0.0", "noise.theta"),
+    "unknown-key": ("hyperparams.lr=1", "hyperparams.lr"),
+}
+
+
+def _hyper_case(kind: str) -> Case:
+    setting, key = HOSTILE_HYPER[kind]
+
+    def build(tmp: Path) -> Probe:
+        return Probe(["train", "--recipe", "paper", "--episodes", "1", "--hyper", setting, "--out", tmp / "new",
+                      "--no-progress"], [key], absent=[tmp / "new"])
+    return Case(f"hyper-{kind}", build)
+
+
+CASES += [_hyper_case(kind) for kind in HOSTILE_HYPER]
+CASES += [Case("hyper-n-envs-huge", lambda tmp: Probe(["train", "--recipe", "paper", "--episodes", "1", "--n-envs",
+                                                        "100000", "--out", tmp / "new", "--no-progress"],
+                                                       ["--n-envs"], absent=[tmp / "new"]))]
+
+
+# ------------------------------------------------------------------------------------------ run folders
+def _run_folder(tmp: Path, run_json: str | None = None, **files: str) -> Path:
+    run = tmp / "run"
+    run.mkdir()
+    if run_json is not None:
+        (run / "run.json").write_text(run_json)
+    for name, text in files.items():
+        (run / name.replace("_yaml", ".yaml")).write_text(text)
+    return run
+
+
+HOSTILE_RUNS: dict[str, tuple[dict, str]] = {
+    "run-json-garbage": ({"run_json": "{not json"}, "not valid JSON"),
+    "run-json-list": ({"run_json": "[1, 2]"}, "JSON object"),
+    "run-json-huge": ({"run_json": json.dumps({"pad": "x" * 2_000_000})}, "larger than"),
+    "run-json-deep": ({"run_json": "[" * 100_000 + "]" * 100_000}, "run file"),
+    "run-json-binary": ({"run_json": "\udcff"}, "run"),
+    "hyperparams-alias-bomb": ({"run_json": json.dumps({"algo": "ddpg", "status": "running", "episodes": 2,
+                                                        "seed": 0, "n_envs": 1, "checkpoint_every": 1}),
+                                "hyperparams_yaml": _alias_bomb(), "config_yaml": "{}\n"}, "aliases"),
+    "config-duplicate-key": ({"run_json": json.dumps({"algo": "ddpg", "status": "running", "episodes": 2, "seed": 0,
+                                                      "n_envs": 1, "checkpoint_every": 1}),
+                              "hyperparams_yaml": "algo: ddpg\n", "config_yaml": "pile: {}\npile: {}\n"},
+                             "more than once"),
+}
+
+
+def _run_case(command: str, kind: str) -> Case:
+    files, expected = HOSTILE_RUNS[kind]
+
+    def build(tmp: Path) -> Probe:
+        run_json = files.get("run_json")
+        others = {k: v for k, v in files.items() if k != "run_json"}
+        run = _run_folder(tmp, run_json.encode("utf-8", "surrogateescape").decode("utf-8", "replace")
+                          if run_json else run_json, **others)
+        if kind == "run-json-binary":
+            (run / "run.json").write_bytes(b"\xff\xfe\x00binary")
+        argv = (["train", "--resume", run, "--no-progress"] if command == "resume" else
+                ["train", "--recipe", "paper", "--init", run, "--episodes", "1", "--out", tmp / "new", "--no-progress"])
+        return Probe(argv, [str(run), expected], keep=sorted(run.iterdir()), absent=[tmp / "new"])
+    return Case(f"runfolder-{command}-{kind}", build)
+
+
+CASES += [_run_case(command, kind) for command in ("resume", "init") for kind in HOSTILE_RUNS
+          if command == "resume" or kind.startswith("run-json")]
+
+
+# ---------------------------------------------------------------------------------------- calibrations
+HOSTILE_CALIBRATIONS: dict[str, tuple[str | bytes, str]] = {
+    "binary": (b"\x00\xff\xfe\x89", "not UTF-8"),
+    "alias": ("a: &a [1]\nb: *a\n", "aliases"),
+    "duplicate": ("format: autoscoop-payload-calibration/1\nformat: x\n", "more than once"),
+    "not-calibration": ("just: text\n", "not an autoscoop payload calibration"),
+    "oversized": ("# " + "x" * 100_000 + "\n", "larger than"),
+}
+
+
+def _calibration_case(kind: str) -> Case:
+    content, expected = HOSTILE_CALIBRATIONS[kind]
+
+    def build(tmp: Path) -> Probe:
+        path = tmp / "cal.yaml"
+        path.write_bytes(content if isinstance(content, bytes) else content.encode())
+        return Probe(["bench", "payload", "--calibration", path, "--episodes", "1", "--json", tmp / "new.json"],
+                     [str(path), expected], keep=[path], absent=[tmp / "new.json"])
+    return Case(f"calibration-bench-{kind}", build)
+
+
+CASES += [_calibration_case(kind) for kind in HOSTILE_CALIBRATIONS]
+
+
+# --------------------------------------------------------------------------------------- smaller cases
+def _compare_over_earlier(tmp: Path) -> Probe:
+    earlier = tmp / "cmp" / "records" / "heuristic" / "32deg" / "episode_00000.npz"
+    earlier.parent.mkdir(parents=True)
+    earlier.write_bytes(b"an earlier compare's record")
+    return Probe(["compare", "--policies", "heuristic", "--episodes", "1", "--angles", "32", "--out", tmp / "cmp"],
+                 ["--overwrite", str(tmp / "cmp")], keep=[earlier])
+
+
+def _records_being_written(tmp: Path) -> Probe:
+    folder = tmp / "rec"
+    folder.mkdir()
+    lock = FileLock(folder / RECORDS_LOCK)
+    lock.acquire()  # another process's run, as far as this one can tell: released when the case's test ends
+    _HELD.append(lock)
+    return Probe(["eval", "--episodes", "1", "--records", folder], ["another autoscoop process", str(folder)],
+                 absent=[folder / "episode_00000.npz"])
+
+
+_HELD: list = []
+CASES += [
+    Case("cases-empty", lambda tmp: Probe(["stress", "--cases", "", "--episodes", "1", "--json", tmp / "s.json",
+                                            "--out", tmp / "s"], ["--cases", "names no case"],
+                                           absent=[tmp / "s.json", tmp / "s"])),
+    Case("cases-commas", lambda tmp: Probe(["stress", "--cases", ",,", "--episodes", "1", "--json", tmp / "s.json",
+                                             "--out", tmp / "s"], ["--cases"], absent=[tmp / "s.json", tmp / "s"])),
+    Case("compare-over-earlier-records", _compare_over_earlier),
+    Case("records-folder-locked", _records_being_written),
+    Case("config-dev-zero", lambda tmp: Probe(["eval", "--episodes", "1", "--config", "/dev/zero"],
+                                               ["/dev/zero", "larger than"])),
+    Case("export-onnx-policy", lambda tmp: Probe(
+        ["export", "--policy", _onnx_file(tmp / "p.onnx", 1, ["batch", 12], ["batch", 3]), "--onnx", tmp / "o.onnx"],
+        [str(tmp / "p.onnx")], absent=[tmp / "o.onnx"])),
+]
 
 
 @pytest.mark.parametrize("case", CASES, ids=str)

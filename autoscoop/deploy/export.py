@@ -174,6 +174,7 @@ def exportable_actor(policy: Any) -> Any:
         why = ("it is already an ONNX file" if isinstance(policy, OnnxPolicy) else
                "a Stable-Baselines3 model; export its run's policy.safetensors" if hasattr(policy, "model") else
                "the heuristic is a script")
-        raise ValueError(f"policy {getattr(policy, 'name', policy)!r} has no torch actor to export ({why}); export a "
+        shown = str(getattr(policy, "path", None) or getattr(policy, "name", policy))
+        raise ValueError(f"policy {shown!r} has no torch actor to export ({why}); export a "
                          "trained policy: default, a .safetensors file or a run directory")
     return actor
