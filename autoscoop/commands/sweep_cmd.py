@@ -17,6 +17,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from autoscoop.commands import check_output_dir, check_output_file, options, write_json
+from autoscoop.core.config import read_yaml_file
 from autoscoop.core.version import __version__
 
 if TYPE_CHECKING:
@@ -51,6 +52,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    if args.space:  # read within bounds before torch is imported: a hostile file fails in a fraction of a second
+        read_yaml_file(args.space, "space file")
     # torch (through the algorithms' settings) is slow to import: only when the command runs
     from autoscoop.training.sweep import (  # noqa: PLC0415
         SweepArgs,

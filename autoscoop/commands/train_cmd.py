@@ -65,6 +65,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    # the config file first, before torch is imported: a hostile one fails in a fraction of a second
+    config_keys = overrides_from_yaml(args.config) if args.config and not args.resume else {}
     from autoscoop.training.checkpoints import read_run_json  # noqa: PLC0415 - torch is slow to import
     from autoscoop.training.run import TrainArgs, resume, train  # noqa: PLC0415 - torch is slow to import
 
@@ -83,8 +85,7 @@ def run(args: argparse.Namespace) -> int:
 
             args.episodes = int(load_recipe(args.algo, args.recipe).get("episodes", DEFAULT_EPISODES))
         # only the keys the file sets: its defaults must not undo the algorithm's own (reward.c_w)
-        flat = overrides_from_yaml(args.config) if args.config else {}
-        flat.update(parse_set_args(args.overrides))
+        flat = {**config_keys, **parse_set_args(args.overrides)}
         run_dir = train(TrainArgs(algo=args.algo, episodes=args.episodes, seed=args.seed, n_envs=args.n_envs,
                                   overrides=flat, out=args.out, checkpoint_every=args.checkpoint_every,
                                   eval_every=args.eval_every, eval_episodes=args.eval_episodes,
