@@ -362,6 +362,24 @@ class ScoopTaskConfig(ConfigModel):
     overload_fill: float = setting(1.05, "-", "an episode ending with a fill factor above this is an overload", 0.5, 3.0)
 
 
+class ShiftConfig(ConfigModel):
+    """A loader's shift (``autoscoop shift``): one big pile, the hopper the loader fills from it, the scripted phases.
+
+    The hopper is added to the scene only for a shift; a single scoop never sees these keys.
+    """
+
+    section = "shift"
+    pile_particles: int = setting(360, "-", "particles in the shift's pile (360 of 0.3 kg: about 15 full scoops of "
+                                  "the rated load); its slope and particles are pile.*", 1, 400)
+    haul_distance_m: float = setting(0.6, "m", "from the pile's toe back to the hopper's centre, along the loader's "
+                                     "path", 0.0, 5.0)
+    hopper_length_m: float = setting(0.5, "m", "inner length of the hopper along the loader's path", 0.2, 2.0)
+    hopper_width_m: float = setting(0.7, "m", "inner width of the hopper across the loader's path", 0.3, 2.0)
+    hopper_height_m: float = setting(0.10, "m", "height of the hopper's rim above the ground", 0.02, 1.0)
+    phase_limit_s: float = setting(20.0, "s", "time limit of each scripted phase (back out, drive to the hopper, "
+                                   "dump, curl back, return)", 1.0, 120.0)
+
+
 def _range(low: float, high: float, unit: str, doc: str) -> Any:
     return setting((), unit, doc + "; [low, high] drawn uniformly per episode (equal ends: a fixed value; "
                    "empty: the preset's)", low, high, max_length=2)
@@ -482,6 +500,7 @@ class ScoopConfig(ConfigModel):
     sensor: SensorConfig = Field(default_factory=SensorConfig, description="sensor delay and noise")
     scoop: ScoopTaskConfig = Field(default_factory=ScoopTaskConfig, description="what counts as a scoop")
     randomize: RandomizeConfig = Field(default_factory=RandomizeConfig, description="the randomised world")
+    shift: ShiftConfig = Field(default_factory=ShiftConfig, description="a loader's shift: pile, hopper, phases")
 
     @property
     def max_episode_steps(self) -> int:

@@ -107,6 +107,8 @@ class ScoopEnv(gym.Env):
     """
 
     metadata = {"render_modes": ["rgb_array"], "render_fps": 4}
+    sim_type: type[ScoopSim] = ScoopSim
+    """the simulator the environment builds from its config (a shift's world adds a hopper to it)"""
 
     def __init__(self, config: ScoopConfig | None = None, render_mode: str | None = None,
                  **overrides: Any) -> None:
@@ -121,7 +123,7 @@ class ScoopEnv(gym.Env):
         self.world: dict[str, Any] = {}
         self.render_mode = render_mode
         self.metadata = {**self.metadata, "render_fps": int(round(1.0 / config.env.control_period_s))}
-        self.sim = ScoopSim(config)
+        self.sim = self.sim_type(config)
         self._scenes = {scene_key(config): self.sim}
         self.limits = CommandLimits.for_robot(config.robot)
         self.action_space = gym.spaces.Box(-1.0, 1.0, shape=(state_mod.ACTION_SIZE,), dtype=np.float32)
@@ -233,6 +235,11 @@ class ScoopEnv(gym.Env):
         info.update(terms)
         terminated = info["reached"]  # the scoop ends at the terminal point, loaded or not
         return obs, float(reward), bool(terminated), False, info
+
+    @property
+    def commanded_targets(self) -> np.ndarray:
+        """The commanded targets now: forward speed m/s, lift rad, tilt rad (each action moves them)."""
+        return self._targets.copy()
 
     @property
     def state_frame(self) -> str:

@@ -101,8 +101,9 @@ def add_particle_joints(body: mujoco.MjsBody, name: str, centre: np.ndarray, rol
         body.add_joint(name=name + suffix, type=mujoco.mjtJoint.mjJNT_SLIDE, axis=axis, ref=float(centre[k]))
 
 
-def compile_scene(config: ScoopConfig) -> mujoco.MjModel:
-    """Compile the scene; rolling particles get their spin damped.
+def compile_scene(config: ScoopConfig, add_bodies: Callable[[mujoco.MjSpec], None] | None = None) -> mujoco.MjModel:
+    """Compile the scene (``add_bodies`` may add to its spec first: a shift's hopper); rolling particles get their
+    spin damped.
 
     Gravel is angular and does not roll like marbles. MuJoCo's rolling friction (condim 6) would
     triple the contact rows; damping the particles' three rotational degrees of freedom gives the
@@ -111,7 +112,10 @@ def compile_scene(config: ScoopConfig) -> mujoco.MjModel:
     that resistance, and a faster scene (fewer degrees of freedom in the contact solve), but not the
     one the shipped policy and the scripted controller are tuned for.
     """
-    model = build_spec(config).compile()
+    spec = build_spec(config)
+    if add_bodies is not None:
+        add_bodies(spec)
+    model = spec.compile()
     if config.pile.rolling:
         for i in range(config.pile.n_particles):
             dof = model.jnt_dofadr[model.joint(f"particle_{i:03d}").id]
@@ -128,7 +132,7 @@ class ScoopSim:
 
     def __init__(self, config: ScoopConfig) -> None:
         self.config = config
-        self.model = compile_scene(config)
+        self.model = self.compile_model(config)
         self.data = mujoco.MjData(self.model)
         m = self.model
         self.n_particles = config.pile.n_particles
@@ -161,6 +165,10 @@ class ScoopSim:
         # the mean wheel speed (rad/s) of the physics steps before the last, newest last: the odometry
         # averages it with the present one over sensor.odometry_window_steps
         self._wheel_speed_history: deque[float] = deque(maxlen=self.odometry_window_steps - 1)
+
+    def compile_model(self, config: ScoopConfig) -> mujoco.MjModel:
+        """The compiled scene this simulator runs (a subclass may add bodies: :func:`compile_scene`)."""
+        return compile_scene(config)
 
     # ---------------------------------------------------------------- reset and stepping
     def reset(self, rng: np.random.Generator | None = None, *, pile: PileConfig | None = None,
@@ -197,6 +205,10 @@ class ScoopSim:
         if start_gap_m is not None:
             self.data.qpos[self._root_qpos] -= start_gap_m - self.config.robot.start_gap_m
         mujoco.mj_kinematics(self.model, self.data)  # positions only: keeps the pile asleep
+        self.restart_clock()
+
+    def restart_clock(self) -> None:
+        """Start the episode clock (:attr:`elapsed_s`) and the odometry's window afresh, here."""
         self.time_origin_s = float(self.data.time)
         self._wheel_speed_history.clear()
 

@@ -1,0 +1,129 @@
+"""The scene of a loader's shift: the scooping scene with a hopper, a pile that keeps every scoop's mark, and
+the particles the hopper received kept apart.
+
+World frame as in :mod:`autoscoop.sim.scene`: x forward from the pile's toe, y left, z up, metres. At each
+scoop's start the whole world (the loader and every particle not yet delivered) is moved along x so that the
+pile's toe is at x = 0 again: the ground is flat and endless, so nothing physical changes, and the scoop sees
+the frame it always does (its terminal point ``reward.terminal_dx_m`` past the toe). :attr:`ShiftSim.toe_shift_m`
+keeps how far the toe has retreated since the shift's start.
+"""
+
+from __future__ import annotations
+
+import functools
+
+import mujoco
+import numpy as np
+
+from autoscoop.core.config import PileConfig, ScoopConfig
+from autoscoop.core.shift_accounting import ParticleAccount, account, toe_x_m, touching_cluster
+from autoscoop.sim.hopper import HOPPER_BODY, PARKED_POSITION_M, add_hopper, inside_hopper
+from autoscoop.sim.scene import ScoopSim, compile_scene
+
+DELIVERED_X_M, DELIVERED_Y_M = -6.0, -3.0
+"""Where delivered particles are kept (a row along -x from here, at rest on the ground): the load left with its truck."""
+DELIVERED_SPACING_RADII = 3.0
+"""Centres of kept particles this many radii apart along their row."""
+
+
+class ShiftSim(ScoopSim):
+    """The scooping scene of :class:`ScoopSim` with a hopper; its pile carries over from one scoop to the next.
+
+    The first :meth:`reset` after :meth:`start_shift` settles a fresh pile as :class:`ScoopSim` does; every later
+    one keeps the pile and the loader where they are and moves the world so that the toe is at x = 0.
+
+    Args:
+        config: the shift's scene (``pile.n_particles`` the shift's pile; ``shift.*`` the hopper).
+    """
+
+    def __init__(self, config: ScoopConfig) -> None:
+        super().__init__(config)
+        self._hopper = self.model.body(HOPPER_BODY).mocapid[0]
+        self._root_x = self.model.joint("root").qposadr[0]
+        self._particle_x = np.array([self.model.joint(f"particle_{i:03d}").qposadr[0]
+                                     for i in range(self.n_particles)], dtype=int)
+        self.start_shift()
+
+    def compile_model(self, config: ScoopConfig) -> mujoco.MjModel:
+        """The scooping scene with the hopper (:func:`autoscoop.sim.hopper.add_hopper`)."""
+        return compile_scene(config, functools.partial(add_hopper, shift=config.shift))
+
+    def start_shift(self) -> None:
+        """The next :meth:`reset` starts a new shift on a freshly settled pile; nothing is delivered yet."""
+        self.delivered = np.zeros(self.n_particles, dtype=bool)
+        self.toe_shift_m = 0.0
+        self._continuing = False
+
+    def reset(self, rng: np.random.Generator | None = None, *, pile: PileConfig | None = None,
+              start_gap_m: float | None = None, prescoop_particles: int | None = None) -> None:
+        """A shift's first scoop: a settled pile as :meth:`ScoopSim.reset` gives it. A later one: the pile and the
+        loader as the last cycle left them, the world moved so that the toe is at x = 0, the clock restarted."""
+        if not self._continuing:
+            super().reset(rng, pile=pile, start_gap_m=start_gap_m, prescoop_particles=prescoop_particles)
+            self._continuing = True
+            return
+        self.recentre_on_toe()
+        self.restart_clock()
+
+    # ---------------------------------------------------------------- the pile
+    def pile_mask(self) -> np.ndarray:
+        """(n,) the particles on the pile now (:func:`autoscoop.core.shift_accounting.touching_cluster`)."""
+        free = ~self.delivered & ~self.particles_in_bucket() & np.all(np.isfinite(self.particle_positions), axis=1)
+        return touching_cluster(self.particle_positions, self.config.pile.radius_m, free)
+
+    def toe_x_m(self) -> float:
+        """The pile's toe now, world x, m."""
+        return toe_x_m(self.particle_positions, self.config.pile.radius_m, self.pile_mask())
+
+    def recentre_on_toe(self) -> float:
+        """Move the loader and every particle not delivered along x so that the toe is at x = 0; returns the move, m."""
+        toe = self.toe_x_m()
+        if not np.isfinite(toe):
+            return 0.0
+        moving = self._particle_x[~self.delivered]
+        self.data.qpos[moving] -= toe
+        self.data.qpos[self._root_x] -= toe
+        mujoco.mj_kinematics(self.model, self.data)
+        self.toe_shift_m += toe
+        return toe
+
+    # ---------------------------------------------------------------- the hopper
+    @property
+    def hopper_position_m(self) -> np.ndarray:
+        """The hopper's inner floor centre in the world frame, (3,) m."""
+        return self.data.mocap_pos[self._hopper].copy()
+
+    def spot_hopper(self, centre_x_m: float) -> None:
+        """Stand the hopper with its centre at world x ``centre_x_m`` on the loader's path (y = 0)."""
+        self.data.mocap_pos[self._hopper] = [centre_x_m, 0.0, 0.0]
+        mujoco.mj_kinematics(self.model, self.data)
+
+    def particles_in_hopper(self) -> np.ndarray:
+        """(n,) particles inside the hopper now (not those already delivered)."""
+        inside = inside_hopper(self.particle_positions, self.hopper_position_m, self.config.shift)
+        return inside & ~self.delivered
+
+    def deliver(self) -> int:
+        """Count the particles in the hopper as delivered, keep them apart (the truck leaves with them) and park the
+        hopper away from the pile; returns how many were delivered."""
+        received = np.flatnonzero(self.particles_in_hopper())
+        radius = self.config.pile.radius_m
+        kept = int(self.delivered.sum())
+        for k, index in enumerate(received):
+            x = DELIVERED_X_M - DELIVERED_SPACING_RADII * radius * (kept + k)
+            self.set_particle(int(index), np.array([x, DELIVERED_Y_M, radius]))
+        self.delivered[received] = True
+        self.data.mocap_pos[self._hopper] = PARKED_POSITION_M
+        mujoco.mj_forward(self.model, self.data)
+        return len(received)
+
+    def delivered_kept(self) -> np.ndarray:
+        """(n,) particles lying in the row where delivered particles are kept."""
+        positions, radius = self.particle_positions, self.config.pile.radius_m
+        return (np.abs(positions[:, 1] - DELIVERED_Y_M) <= radius) & (positions[:, 0] <= DELIVERED_X_M + radius) \
+            & (np.abs(positions[:, 2] - radius) <= radius)
+
+    def account(self) -> ParticleAccount:
+        """Where every particle is now: pile, bucket, delivered, spilled (or unaccounted for)."""
+        return account(self.particle_positions, self.config.pile.radius_m, self.particles_in_bucket(),
+                       self.delivered, self.delivered_kept())
