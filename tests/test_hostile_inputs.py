@@ -489,7 +489,24 @@ def _records_being_written(tmp: Path) -> Probe:
                  absent=[folder / "episode_00000.npz"])
 
 
+def _inline_alias_bomb(levels: int = 8) -> str:
+    items = ["&a0 [x, x, x, x, x, x, x, x, x]"]
+    items += [f"&a{i} [{', '.join([f'*a{i - 1}'] * 9)}]" for i in range(1, levels)]
+    return "[" + ", ".join(items) + "]"
+
+
 _HELD: list = []
+CASES += [
+    Case("set-value-alias-bomb", lambda tmp: Probe(["eval", "--episodes", "1", "--set",
+                                                     f"pile.angle_deg={_inline_alias_bomb()}"], ["pile.angle_deg"])),
+    Case("hyper-value-alias-bomb", lambda tmp: Probe(["train", "--recipe", "paper", "--episodes", "1", "--hyper",
+                                                       f"hyperparams.gamma={_inline_alias_bomb()}", "--out",
+                                                       tmp / "new"], ["--hyper hyperparams.gamma", "aliases"],
+                                                      absent=[tmp / "new"])),
+    Case("hyper-value-not-yaml", lambda tmp: Probe(["train", "--recipe", "paper", "--episodes", "1", "--hyper",
+                                                     "hyperparams.gamma=[1", "--out", tmp / "new"],
+                                                    ["--hyper hyperparams.gamma", "not valid YAML"], absent=[tmp / "new"])),
+]
 CASES += [
     Case("cases-empty", lambda tmp: Probe(["stress", "--cases", "", "--episodes", "1", "--json", tmp / "s.json",
                                             "--out", tmp / "s"], ["--cases", "names no case"],

@@ -24,7 +24,7 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_valida
 from pydantic.fields import FieldInfo
 
 from autoscoop.core import kinematics
-from autoscoop.core.safe_files import UnsafeInputError, quote, read_yaml, write_text_atomically
+from autoscoop.core.safe_files import UnsafeInputError, parse_yaml, quote, read_yaml, write_text_atomically
 
 
 class ConfigError(ValueError):
@@ -533,9 +533,11 @@ def all_keys() -> list[str]:
 
 
 def _parse_scalar(text: str) -> Any:
+    """A ``--set`` value as YAML (without aliases or duplicate keys: :func:`~autoscoop.core.safe_files.parse_yaml`);
+    the text itself where it is not such YAML."""
     try:
-        return yaml.safe_load(text)
-    except yaml.YAMLError:
+        return parse_yaml(text, "--set value")
+    except UnsafeInputError:
         return text
 
 

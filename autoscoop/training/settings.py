@@ -6,10 +6,9 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any
 
-import yaml
-
 from autoscoop.agents.algorithms import ALGORITHMS
 from autoscoop.core.config import ScoopConfig
+from autoscoop.core.safe_files import parse_yaml
 from autoscoop.training.recipes import SHIPPED_RECIPE, algorithm_yaml, check_recipe, lay_over, recipe_overlay
 
 
@@ -103,7 +102,7 @@ def with_hyper_overrides(spec: dict[str, Any], overrides: dict[str, str]) -> dic
             known = sorted(f"{name}.{k}" for name, sec in out.items() if isinstance(sec, dict) for k in sec)
             raise ValueError(f"--hyper {dotted}: not a setting of this algorithm; known: {', '.join(known)}")
         old = out[section][key]
-        value = yaml.safe_load(text)
+        value = parse_yaml(text, f"--hyper {dotted}")
         if isinstance(old, float) and not isinstance(value, bool):
             try:  # YAML reads 3e-4 as a string
                 value = float(text)
