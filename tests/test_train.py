@@ -87,6 +87,12 @@ def test_train_command_smoke_run_writes_the_run_directory(tmp_path):
     assert any((out / "tb").rglob("events.out.tfevents.*"))
     policy = load_policy(str(out), ScoopConfig())
     assert policy.act(np.zeros(12, dtype=np.float32)).shape == (3,)
+    # the kept policy as ONNX beside it, checked, and the whole command's time (training is a part of it)
+    assert info["export"]["onnx"] == "policy.onnx" and info["export"]["passed"]
+    onnx = load_policy(str(out / "policy.onnx"), ScoopConfig())
+    np.testing.assert_allclose(onnx.act(np.zeros(12, dtype=np.float32)), policy.act(np.zeros(12, dtype=np.float32)),
+                               atol=5e-5)
+    assert info["command_wall_s"] > info["wall_s"] > 0
 
 
 def test_resume_continues_steps_and_keeps_the_replay_buffer(tmp_path, monkeypatch):

@@ -38,27 +38,34 @@ def onnx_path(text: str) -> Path:
 
 def run(args: argparse.Namespace) -> int:
     from autoscoop.agents.loading import load_policy  # noqa: PLC0415
-    from autoscoop.deploy.export import check_parity, export_onnx, exportable_actor, random_actor_inputs  # noqa: PLC0415
 
     config = config_from_args(args)
     policy = load_policy(args.policy, config, trust=args.trust)
+    report = export_policy(policy, args.onnx, args.policy, args.check_states)
+    if args.json and report is not None:
+        write_json(args.json, {"onnx": str(args.onnx), "policy": args.policy, **report})
+    if report is not None and not report["passed"]:
+        print("parity check FAILED")
+        return 1
+    return 0
+
+
+def export_policy(policy: object, onnx: Path, source: str, check_states: int = 10_000) -> dict | None:
+    """Write a loaded policy's actor to ``onnx`` and, with ``check_states`` > 0, compare the file with the torch
+    actor on that many random inputs; print what was done. Returns the parity report (``None`` unchecked)."""
+    from autoscoop.deploy.export import check_parity, export_onnx, exportable_actor, random_actor_inputs  # noqa: PLC0415
+
     actor = exportable_actor(policy)
-    path = export_onnx(actor, args.onnx, {"policy_name": getattr(policy, "name", args.policy),
-                                          "source_policy": args.policy,
-                                          "state_frame": state_frame_of(policy) or "chassis"})
+    path = export_onnx(actor, onnx, {"policy_name": getattr(policy, "name", source), "source_policy": source,
+                                     "state_frame": state_frame_of(policy) or "chassis"})
     print(f"wrote {path} ({path.stat().st_size / 1024:.1f} KiB)")
-    if args.check_states == 0:
-        return 0
-    report = check_parity(actor, path, random_actor_inputs(args.check_states, getattr(actor, "history_steps", 1)))
+    if check_states == 0:
+        return None
+    report = check_parity(actor, path, random_actor_inputs(check_states, getattr(actor, "history_steps", 1)))
     print(f"parity over {report['states']} random states: max |onnx - torch| = {report['max_abs_diff']:.2e} "
           f"(allowed {report['tolerance']:.0e}; float32 rounding: torch {report['torch_vs_float64']:.1e}, "
           f"onnxruntime {report['onnx_vs_float64']:.1e} from float64)")
     print(f"one inference step: onnxruntime {report['onnxruntime_step']['median_us']:.0f} us "
           f"(p99 {report['onnxruntime_step']['p99_us']:.0f}), torch {report['torch_step']['median_us']:.0f} us "
           f"(p99 {report['torch_step']['p99_us']:.0f}), one thread")
-    if args.json:
-        write_json(args.json, {"onnx": str(path), "policy": args.policy, **report})
-    if not report["passed"]:
-        print("parity check FAILED")
-        return 1
-    return 0
+    return report

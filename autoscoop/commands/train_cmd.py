@@ -4,6 +4,7 @@ run directory; plain ``autoscoop train`` runs the shipped policy's recipe, ``--r
 from __future__ import annotations
 
 import argparse
+import time
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -65,6 +66,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    started = time.monotonic()
     # the config file first, before torch is imported: a hostile one fails in a fraction of a second
     config_keys = overrides_from_yaml(args.config) if args.config and not args.resume else {}
     from autoscoop.training.checkpoints import read_run_json  # noqa: PLC0415 - torch is slow to import
@@ -94,8 +96,36 @@ def run(args: argparse.Namespace) -> int:
                                   recipe=args.recipe))
     if selection_pending(run_dir):
         select_kept_policy(run_dir, progress=not args.no_progress)
+    finish_run(run_dir, started)
     print(f"run directory: {run_dir}")
     return 0
+
+
+def finish_run(run_dir: Path, started: float) -> None:
+    """The kept policy as ONNX beside it (``policy.onnx``, checked against the torch actor), and the command's
+    wall time in ``run.json``: ``command_wall_s`` adds this call's time (s, from ``started``, a
+    ``time.monotonic()``) to what earlier calls on the run (``--resume``) recorded; ``export`` holds the
+    parity check. Without onnx installed, or for an actor the safe format cannot hold, no file is written."""
+    from autoscoop.agents.policy_files import ActorPolicy, PolicyFileError  # noqa: PLC0415 - torch is slow to import
+    from autoscoop.commands.export_cmd import export_policy  # noqa: PLC0415
+    from autoscoop.training.checkpoints import lock_run_dir, read_run_json, write_run_json  # noqa: PLC0415
+
+    export: dict[str, object] = {}
+    kept = run_dir / "policy.safetensors"
+    try:
+        report = export_policy(ActorPolicy(kept, name=run_dir.name), run_dir / "policy.onnx", str(kept), 2000)
+        export = {"onnx": "policy.onnx", "max_abs_diff": report["max_abs_diff"], "passed": report["passed"]}
+    except ImportError as error:  # the deploy extra is not installed
+        print(f"no policy.onnx: {error}")
+    except PolicyFileError as error:
+        print(f"no policy.onnx: {error}")
+    with lock_run_dir(run_dir):
+        info = read_run_json(run_dir)
+        info["command_wall_s"] = round(float(info.get("command_wall_s", 0.0)) + time.monotonic() - started, 1)
+        if export:
+            info["export"] = export
+        write_run_json(run_dir, info)
+    print(f"command wall time: {info['command_wall_s']:.0f} s (training {info.get('wall_s', 0):.0f} s)")
 
 
 def selection_pending(run_dir: Path) -> bool:
