@@ -24,6 +24,7 @@ COMMANDS = [
     "autoscoop.commands.payload_cmd",
     "autoscoop.commands.export_cmd",
     "autoscoop.commands.ros_cmd",
+    "autoscoop.commands.ros2_cmd",
 ]
 """Modules that each offer ``register(subparsers)``; a new command adds one line here."""
 

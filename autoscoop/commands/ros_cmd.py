@@ -10,7 +10,9 @@ The controller is not a substitute for the robot's hardware emergency stop.
 from __future__ import annotations
 
 import argparse
+from collections.abc import Callable
 from pathlib import Path
+from typing import Any
 
 from autoscoop.commands import check_output_file, config_from_args, options, write_json
 from autoscoop.core.config import ConfigError, ScoopConfig, parse_set_args
@@ -23,20 +25,32 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
     controller = nodes.add_parser("controller", help="run a policy on the robot's topics, with watchdog and limits",
                                   description=_CONTROLLER_DOC, formatter_class=argparse.RawDescriptionHelpFormatter)
-    options.add_policy_option(controller, accepts="default (shipped), heuristic, a .onnx file (onnxruntime only) or a policy file")
-    controller.add_argument("--config", type=Path, help="the robot's YAML: limits, timeouts, calibration, topics")
+    add_controller_options(controller)
     controller.add_argument("--record", type=Path, metavar="DIR", help="write one episode record per scoop here")
-    options.add_set_option(controller, "scene/task config the policy was made for, e.g. --set pile.angle_deg=28 (labels "
-                               "the records; the heuristic aims at reward.terminal_*)")
-    options.add_trust_option(controller)
-    controller.add_argument("--check", action="store_true",
-                            help="check the configuration and the policy, print them, and exit without ROS")
     controller.add_argument("remap", nargs="*", type=ros_remap, metavar="NAME:=NEW",
                             help="ROS remappings and private parameters")
     controller.set_defaults(func=run_controller)
 
     sim = nodes.add_parser("sim", help="the MuJoCo scene behind the robot's topics (like Gazebo)",
                            description=_SIM_DOC, formatter_class=argparse.RawDescriptionHelpFormatter)
+    add_sim_options(sim)
+    sim.add_argument("remap", nargs="*", type=ros_remap, metavar="NAME:=NEW", help="ROS remappings")
+    sim.set_defaults(func=run_sim)
+
+
+def add_controller_options(controller: argparse.ArgumentParser) -> None:
+    """The options every controller node takes (``ros controller``, ``ros2 controller``), but where it records."""
+    options.add_policy_option(controller, accepts="default (shipped), heuristic, a .onnx file (onnxruntime only) or a policy file")
+    controller.add_argument("--config", type=Path, help="the robot's YAML: limits, timeouts, calibration, topics")
+    options.add_set_option(controller, "scene/task config the policy was made for, e.g. --set pile.angle_deg=28 (labels "
+                               "the records; the heuristic aims at reward.terminal_*)")
+    options.add_trust_option(controller)
+    controller.add_argument("--check", action="store_true",
+                            help="check the configuration and the policy, print them, and exit without ROS")
+
+
+def add_sim_options(sim: argparse.ArgumentParser) -> None:
+    """The options every simulator node takes (``ros sim``, ``ros2 sim``)."""
     options.add_episodes_option(sim, default=0, what="episodes to run, then exit (0: until stopped)", minimum=0)
     options.add_seed_option(sim, what="seed of the first episode (as in autoscoop eval)")
     options.add_json_option(sim, "the summary (as autoscoop eval does)")
@@ -45,12 +59,10 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                          help=f"{what}, {unit}: the config key {key} (same as --set {key}=...; default 0)")
     sim.add_argument("--robot-config", type=Path,
                      help="the robot's YAML: topic and joint names, and potentiometer calibration (raw readings)")
-    sim.add_argument("--label", help="policy name for the summary (default: the controller's ~policy parameter)")
+    sim.add_argument("--label", help="policy name for the summary (default: the policy the controller announces)")
     sim.add_argument("--wait-s", type=options.POSITIVE_SECONDS, default=60.0,
                      help="give up when no controller appears within this long, s (default 60)")
     options.add_config_args(sim)
-    sim.add_argument("remap", nargs="*", type=ros_remap, metavar="NAME:=NEW", help="ROS remappings")
-    sim.set_defaults(func=run_sim)
 
 
 LINK_OPTIONS = (
@@ -91,8 +103,9 @@ def ros_remap(text: str) -> str:
     return text
 
 
-def build_controller(args: argparse.Namespace):
-    """The checked controller core from the command line (no ROS needed)."""
+def build_controller(args: argparse.Namespace, record_dir: Path | None = None):
+    """The checked controller core from the command line (no ROS needed); its episode records go to
+    ``record_dir``."""
     from autoscoop.agents.loading import load_policy  # noqa: PLC0415
     from autoscoop.deploy.controller import ControllerCore  # noqa: PLC0415
     from autoscoop.deploy.robot_config import load_robot_config  # noqa: PLC0415
@@ -101,17 +114,26 @@ def build_controller(args: argparse.Namespace):
     task = ScoopConfig().with_overrides({**parse_set_args(args.overrides),
                                          "env.control_period_s": robot.control.control_period_s})
     policy = load_policy(args.policy, task, trust=args.trust)
-    return ControllerCore(robot, policy, task, record_dir=args.record, policy_name=args.policy)
+    return ControllerCore(robot, policy, task, record_dir=record_dir, policy_name=args.policy)
 
 
-def run_controller(args: argparse.Namespace) -> int:
+def checked_controller(args: argparse.Namespace, record_dir: Path | None):
+    """:func:`build_controller`, a ConfigError saying the controller did not start; with ``--check``, the
+    configuration printed and ``None`` (the command then exits 0)."""
     try:
-        core = build_controller(args)
+        core = build_controller(args, record_dir)
     except ConfigError as error:
         raise ConfigError(f"controller not started: {error}") from None
     if args.check:
         print(core.config.describe())
         print(f"policy: {core.policy_name} ({type(core.policy).__name__}); configuration OK")
+        return None
+    return core
+
+
+def run_controller(args: argparse.Namespace) -> int:
+    core = checked_controller(args, args.record)
+    if core is None:
         return 0
     from autoscoop.deploy.ros1 import RosUnavailable  # noqa: PLC0415
 
@@ -125,8 +147,28 @@ def run_controller(args: argparse.Namespace) -> int:
 
 
 def run_sim(args: argparse.Namespace) -> int:
-    from autoscoop.deploy.robot_config import load_robot_config  # noqa: PLC0415
+    def run_node(bridge):
+        from autoscoop.deploy.ros1.sim_node import SimNode  # noqa: PLC0415
+
+        return SimNode(bridge).run(args.episodes, seed=args.seed, wait_for_controller_s=args.wait_s)
+
     from autoscoop.deploy.ros1 import RosUnavailable  # noqa: PLC0415
+
+    return simulate(args, "ros sim", run_node, RosUnavailable)
+
+
+def simulate(args: argparse.Namespace, command: str, run_node: Callable[[Any], tuple[list, Any]],
+             unavailable: type[Exception]) -> int:
+    """``ros sim`` and ``ros2 sim``: the simulator from the options, ``run_node(bridge)`` (the episodes over a
+    middleware: outcomes and a SimRunStats), then the summary of ``autoscoop eval`` printed and written.
+
+    Args:
+        args: the sim's options (:func:`register`).
+        command: the command's name, for its messages.
+        run_node: runs the episodes of a :class:`~autoscoop.deploy.sim_bridge.SimBridge`.
+        unavailable: the error the middleware raises when it is not installed (exit 2, its message).
+    """
+    from autoscoop.deploy.robot_config import load_robot_config  # noqa: PLC0415
     from autoscoop.deploy.sim_bridge import SimBridge  # noqa: PLC0415
     from autoscoop.evaluation.evaluate import format_table, summarize  # noqa: PLC0415
 
@@ -137,18 +179,16 @@ def run_sim(args: argparse.Namespace) -> int:
     try:  # the link options are the environment's sensor keys: one range check, errors naming the key
         config = config.with_overrides({key: value for key, value in link.items() if value is not None})
     except ConfigError as error:
-        raise ConfigError(f"ros sim: {error}") from None
+        raise ConfigError(f"{command}: {error}") from None
     bridge = SimBridge(config, robot=load_robot_config(args.robot_config), seed=args.seed)
     try:
-        from autoscoop.deploy.ros1.sim_node import SimNode  # noqa: PLC0415
-
-        results, stats = SimNode(bridge).run(args.episodes, seed=args.seed, wait_for_controller_s=args.wait_s)
+        results, stats = run_node(bridge)
         label = args.label or stats.controller_policy or "ros controller"
-    except RosUnavailable as error:
-        print(f"autoscoop ros sim: error: {error}")
+    except unavailable as error:
+        print(f"autoscoop {command}: error: {error}")
         return 2
     except TimeoutError as error:
-        print(f"autoscoop ros sim: error: {error}")
+        print(f"autoscoop {command}: error: {error}")
         return 1
     finally:
         bridge.close()

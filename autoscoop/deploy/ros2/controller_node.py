@@ -1,0 +1,115 @@
+"""``autoscoop ros2 controller``: the controller as a ROS 2 node on Cyclone DDS (front end of ControllerCore).
+
+Subscribes and publishes the topics of ``autoscoop ros controller`` (names from the robot YAML's
+``topics``, relative to the node's namespace, remappable with ``from:=to``), with ROS 2's QoS
+(:mod:`autoscoop.deploy.ros2.graph`); publishes ``~/status`` (std_msgs/String, latched: the mode and why
+the robot is stopped) and ``~/policy`` (std_msgs/String, latched: the policy's name, which ``ros2 sim``
+reads for its summary). The e-stop is read twice, transient-local (the latched value of a
+transient-local publisher) and volatile (a publisher with the default profile): either way it is heard.
+
+Stamps are judged on the ROS 2 clock (the system clock, as ROS 2 nodes without ``use_sim_time``).
+All logic is in :mod:`autoscoop.deploy.controller`; the callbacks and the loop in
+:mod:`autoscoop.deploy.controller_loop`.
+"""
+
+from __future__ import annotations
+
+import threading
+import time
+from collections.abc import Callable, Iterable
+from typing import Any
+
+from autoscoop.deploy.controller import ControllerCore, payload_inputs
+from autoscoop.deploy.controller_loop import ControllerLoop, status_line
+from autoscoop.deploy.ros2.graph import COMMANDS, LATCHED, TOPIC_QOS, Ros2Node
+from autoscoop.deploy.ros2.messages import MESSAGE_TYPES, Float64, String, Twist, Vector3
+from autoscoop.deploy.safety import Command
+
+NODE_NAME = "autoscoop_controller"
+LOG_LEVELS = ("info", "warn", "error")
+
+
+class ControllerNode(ControllerLoop):
+    """The Cyclone DDS front end of a :class:`ControllerCore`.
+
+    Args:
+        core: the controller's logic, built and checked.
+        remaps: ``from:=to`` arguments (``__ns:=``, ``__node:=`` included).
+        node_name: the node's name.
+        namespace: the node's namespace (default: ``__ns:=``, ``ROS_NAMESPACE`` or ``/``).
+        clock: monotonic seconds, for the watchdog.
+        ros_clock: the ROS 2 clock, s since the epoch (the system clock).
+        on_publish: called with each command published (a recorder, a test).
+    """
+
+    def __init__(self, core: ControllerCore, remaps: Iterable[str] = (), node_name: str = NODE_NAME,
+                 namespace: str | None = None, clock: Callable[[], float] = time.monotonic,
+                 ros_clock: Callable[[], float] = time.time,
+                 on_publish: Callable[[str, Any], None] | None = None) -> None:
+        self.node = node = Ros2Node(node_name, remaps, namespace)
+        super().__init__(core, node.name, clock)
+        self.ros_clock = ros_clock
+        self.on_publish = on_publish
+        self.stopping = threading.Event()
+        self.last_status: str | None = None
+        core.log = lambda level, text: print(f"[{level if level in LOG_LEVELS else 'info'}] {text}", flush=True)
+        topics = core.config.topics
+        self.commands = {key: node.publisher(getattr(topics, key), MESSAGE_TYPES[key], COMMANDS)
+                         for key in ("cmd_vel", "lift_command", "tilt_command")}
+        self.status = node.publisher("~/status", String, LATCHED)
+        node.publisher("~/policy", String, LATCHED).write(String(core.policy_name))
+        for key, callback in self.input_callbacks(payload_inputs(core.config.payload)).items():
+            node.subscription(getattr(topics, key), MESSAGE_TYPES[key], TOPIC_QOS[key], callback)
+        node.subscription(topics.estop, MESSAGE_TYPES["estop"], COMMANDS, self.on_estop)
+
+    # ---------------------------------------------------------------- ControllerLoop's hooks
+    def header_seconds(self, header: Any) -> float:
+        return header.stamp.to_seconds()
+
+    def ros_time(self) -> float:
+        return self.ros_clock()
+
+    def shutting_down(self) -> bool:
+        return self.stopping.is_set()
+
+    def log_info(self, text: str) -> None:
+        print(f"[info] {text}", flush=True)
+
+    def _write(self, key: str, message: Any) -> None:
+        self.commands[key].write(message)
+        if self.on_publish is not None:
+            self.on_publish(key, message)
+
+    def publish(self, command: Command) -> None:
+        """Publish a command: the speed always, the arm when it has one, the status when it changed."""
+        self._write("cmd_vel", Twist(linear=Vector3(x=command.speed_mps)))
+        if command.lift_rad is not None:
+            self._write("lift_command", Float64(command.lift_rad))
+            self._write("tilt_command", Float64(command.tilt_rad))
+        text = status_line(command)
+        if text != self.last_status:
+            self.status.write(String(text))
+            self.last_status = text
+
+    def spin(self) -> int:
+        """Run until :meth:`stop` (or Ctrl-C); the exit code. Ends a running scoop (its record is written),
+        stops the robot once more and leaves the DDS domain on the way out."""
+        try:
+            self.run_loop()
+        except KeyboardInterrupt:
+            pass
+        finally:
+            self.close()
+        return 0
+
+    def stop(self) -> None:
+        """Ask :meth:`spin` to return (from any thread)."""
+        self.stopping.set()
+        self.wake.set()
+
+    def close(self) -> None:
+        """End the scoop, publish a last stop, and delete the node's participant."""
+        with self.lock:
+            self.core.close(self.clock())
+        self._write("cmd_vel", Twist())
+        self.node.close()
