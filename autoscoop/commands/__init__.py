@@ -75,10 +75,10 @@ def records_dir_lock(path: Path, option: str = "--records") -> Iterator[None]:
     runs started together cannot both pass the empty-folder check and mix their episodes.
 
     Raises:
-        ValueError: ``path`` is a file, or another process holds the lock (not waited for).
+        ValueError: ``path`` is a file or cannot be created (:func:`check_output_dir`), or another process holds
+            the lock (not waited for).
     """
-    if path.exists() and not path.is_dir():
-        raise ValueError(f"{option} {path}: is a file, not a folder")
+    check_output_dir(path, option)
     path.mkdir(parents=True, exist_ok=True)
     lock = FileLock(path / RECORDS_LOCK, timeout=0)
     try:
