@@ -9,6 +9,7 @@ types (``msg.header``, ``msg.position``, ``msg.data`` ...), which ROS 1 and ROS 
 
 from __future__ import annotations
 
+import math
 import threading
 import time
 from collections.abc import Callable
@@ -48,6 +49,8 @@ class ControllerLoop:
         self.lock = threading.Lock()
         """held while the core is used: the callbacks run on the middleware's threads"""
         self.wake = threading.Event()
+        self.update_time = math.nan
+        """the core's clock at the update whose command :meth:`publish` is publishing, s"""
 
     # ---------------------------------------------------------------- what a middleware supplies
     def header_seconds(self, header: Any) -> float:
@@ -70,59 +73,64 @@ class ControllerLoop:
         """Log a line at the info level."""
         raise NotImplementedError
 
+    def observe(self, name: str, msg: Any, now: float) -> None:
+        """Called, under the lock, with every input message as it is handed to the core at ``now`` (the
+        core's clock), by topic key; a recorder overrides it. Nothing by default."""
+
     # ---------------------------------------------------------------- callbacks (the middleware's threads)
-    def _stamped(self, name: str, header: Any, handler: Callable[[float, Stamp], bool]) -> None:
+    def _stamped(self, name: str, msg: Any, handler: Callable[[float, Stamp], bool]) -> None:
         """Feed a message with a header: its stamp and the ROS clock are read with the arrival time; the
         transport delay (stamp -> arrival) of each reading taken is noted for the records."""
         def with_stamp(now: float) -> bool:
-            stamp = Stamp(self.header_seconds(header), self.ros_time())
+            stamp = Stamp(self.header_seconds(msg.header), self.ros_time())
             taken = handler(now, stamp)
             if taken:
                 self.core.transport_delay(name, stamp.age_s)
             return taken
-        self._feed(with_stamp)
+        self._feed(name, msg, with_stamp)
 
-    def _feed(self, handler: Callable[[float], bool | None], always_wake: bool = False) -> None:
+    def _feed(self, name: str, msg: Any, handler: Callable[[float], bool | None], always_wake: bool = False) -> None:
         with self.lock:
-            ok = handler(self.clock())
+            now = self.clock()
+            self.observe(name, msg, now)
+            ok = handler(now)
         if always_wake or ok is False:
             self.wake.set()
 
     def on_joint_states(self, msg: Any) -> None:
         """``sensor_msgs/JointState``."""
-        self._stamped("joint_states", msg.header,
-                      lambda now, stamp: self.core.joint_states(msg.name, msg.position, now, stamp))
+        self._stamped("joint_states", msg, lambda now, stamp: self.core.joint_states(msg.name, msg.position, now, stamp))
 
     def on_odom(self, msg: Any) -> None:
         """``nav_msgs/Odometry``: the forward speed, and the chassis pitch of the orientation."""
         q = msg.pose.pose.orientation
-        self._stamped("odom", msg.header, lambda now, stamp: self.core.odometry(
+        self._stamped("odom", msg, lambda now, stamp: self.core.odometry(
             msg.twist.twist.linear.x, now, pitch_from_quaternion(q.w, q.x, q.y, q.z), stamp))
 
     def on_range(self, msg: Any) -> None:
         """``sensor_msgs/Range``."""
-        self._stamped("pile_range", msg.header, lambda now, stamp: self.core.pile_range(
+        self._stamped("pile_range", msg, lambda now, stamp: self.core.pile_range(
             msg.range, now, msg.min_range, msg.max_range, stamp))
 
     def on_tilt_torque(self, msg: Any) -> None:
         """``std_msgs/Float64`` on ``bucket_torque``: the tilt torque, N*m."""
-        self._feed(lambda now: self.core.bucket_torque(msg.data, now))
+        self._feed("bucket_torque", msg, lambda now: self.core.bucket_torque(msg.data, now))
 
     def on_lift_torque(self, msg: Any) -> None:
         """``std_msgs/Float64`` on ``lift_torque``, N*m."""
-        self._feed(lambda now: self.core.lift_torque(msg.data, now))
+        self._feed("lift_torque", msg, lambda now: self.core.lift_torque(msg.data, now))
 
     def on_mass(self, msg: Any) -> None:
         """``std_msgs/Float64`` on ``payload_mass``, kg."""
-        self._feed(lambda now: self.core.payload_mass(msg.data, now))
+        self._feed("payload_mass", msg, lambda now: self.core.payload_mass(msg.data, now))
 
     def on_estop(self, msg: Any) -> None:
         """``std_msgs/Bool``."""
-        self._feed(lambda now: self.core.estop(msg.data, now), always_wake=True)
+        self._feed("estop", msg, lambda now: self.core.estop(msg.data, now), always_wake=True)
 
     def on_scoop(self, msg: Any) -> None:
         """``std_msgs/Bool``."""
-        self._feed(lambda now: self.core.scoop(msg.data, now), always_wake=True)
+        self._feed("scoop", msg, lambda now: self.core.scoop(msg.data, now), always_wake=True)
 
     def input_callbacks(self, needed_payload: tuple[str, ...]) -> dict[str, Callable[[Any], None]]:
         """The callback of each input topic (keys of ``robot_config.TOPIC_DEFAULTS``), the payload's
@@ -146,5 +154,6 @@ class ControllerLoop:
                 command = core.update(now)
                 wake_at = core.next_wakeup(now)
             if command is not None:
+                self.update_time = now
                 self.publish(command)
             self.wake.wait(min(max(wake_at - clock(), 0.0), LONGEST_SLEEP_S))

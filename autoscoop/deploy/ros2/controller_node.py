@@ -22,6 +22,7 @@ from typing import Any
 from autoscoop.deploy.controller import ControllerCore, payload_inputs
 from autoscoop.deploy.controller_loop import ControllerLoop, status_line
 from autoscoop.deploy.ros2.graph import COMMANDS, LATCHED, TOPIC_QOS, Ros2Node
+from autoscoop.deploy.ros2.mcap_log import McapLog, monotonic_offset_ns, wall_clock_ns
 from autoscoop.deploy.ros2.messages import MESSAGE_TYPES, Float64, String, Twist, Vector3
 from autoscoop.deploy.safety import Command
 
@@ -39,17 +40,18 @@ class ControllerNode(ControllerLoop):
         namespace: the node's namespace (default: ``__ns:=``, ``ROS_NAMESPACE`` or ``/``).
         clock: monotonic seconds, for the watchdog.
         ros_clock: the ROS 2 clock, s since the epoch (the system clock).
-        on_publish: called with each command published (a recorder, a test).
+        log: where to record every input as handed to the core and every command as the core made it,
+            each at that moment of the core's clock put on the wall clock (so a replay sees the same order).
     """
 
     def __init__(self, core: ControllerCore, remaps: Iterable[str] = (), node_name: str = NODE_NAME,
                  namespace: str | None = None, clock: Callable[[], float] = time.monotonic,
-                 ros_clock: Callable[[], float] = time.time,
-                 on_publish: Callable[[str, Any], None] | None = None) -> None:
+                 ros_clock: Callable[[], float] = time.time, log: McapLog | None = None) -> None:
         self.node = node = Ros2Node(node_name, remaps, namespace)
         super().__init__(core, node.name, clock)
         self.ros_clock = ros_clock
-        self.on_publish = on_publish
+        self.log = log
+        self.clock_offset_ns = monotonic_offset_ns()
         self.stopping = threading.Event()
         self.last_status: str | None = None
         core.log = lambda level, text: print(f"[{level if level in LOG_LEVELS else 'info'}] {text}", flush=True)
@@ -75,10 +77,17 @@ class ControllerNode(ControllerLoop):
     def log_info(self, text: str) -> None:
         print(f"[info] {text}", flush=True)
 
+    def observe(self, name: str, msg: Any, now: float) -> None:
+        self._record(name, msg, now)
+
+    def _record(self, key: str, message: Any, now: float) -> None:
+        if self.log is not None:
+            topic = self.node.resolve(getattr(self.core.config.topics, key))
+            self.log.write(topic, message, wall_clock_ns(now, self.clock_offset_ns))
+
     def _write(self, key: str, message: Any) -> None:
         self.commands[key].write(message)
-        if self.on_publish is not None:
-            self.on_publish(key, message)
+        self._record(key, message, self.update_time)
 
     def publish(self, command: Command) -> None:
         """Publish a command: the speed always, the arm when it has one, the status when it changed."""
@@ -111,5 +120,8 @@ class ControllerNode(ControllerLoop):
         """End the scoop, publish a last stop, and delete the node's participant."""
         with self.lock:
             self.core.close(self.clock())
+        self.update_time = self.clock()
         self._write("cmd_vel", Twist())
         self.node.close()
+        if self.log is not None:
+            self.log.close()

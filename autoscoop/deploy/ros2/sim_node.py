@@ -16,6 +16,7 @@ from collections.abc import Callable, Iterable
 from typing import Any
 
 from autoscoop.deploy.ros2.graph import COMMANDS, LATCHED, TOPIC_QOS, Ros2Node, take_all
+from autoscoop.deploy.ros2.mcap_log import McapLog
 from autoscoop.deploy.ros2.messages import (
     MESSAGE_TYPES,
     Bool,
@@ -71,23 +72,33 @@ class SimNode(SimLoop):
         node_name: the node's name.
         namespace: the node's namespace (default: ``__ns:=``, ``ROS_NAMESPACE`` or ``/``).
         ros_clock: the ROS 2 clock, s since the epoch (the system clock).
-        on_publish: called with each message published, by topic key (a recorder).
+        log: where to record every message published (when published) and every command (when it arrived).
     """
 
     def __init__(self, bridge: SimBridge, delay_s: float | None = None, remaps: Iterable[str] = (),
                  node_name: str = NODE_NAME, namespace: str | None = None,
-                 ros_clock: Callable[[], float] = time.time,
-                 on_publish: Callable[[str, Any], None] | None = None) -> None:
+                 ros_clock: Callable[[], float] = time.time, log: McapLog | None = None) -> None:
         super().__init__(bridge, delay_s)
         self.node = node = Ros2Node(node_name, remaps, namespace)
         self.ros_clock = ros_clock
-        self.on_publish = on_publish
+        self.log = log
         self.stopping = threading.Event()
         self.sensors = {key: node.publisher(getattr(self.topics, key), MESSAGE_TYPES[key], TOPIC_QOS[key])
                         for key in SENSOR_TOPICS}
         self.scoop = node.publisher(self.topics.scoop, Bool, COMMANDS)
         for key, callback in self.command_callbacks().items():
-            node.subscription(getattr(self.topics, key), MESSAGE_TYPES[key], TOPIC_QOS[key], callback)
+            node.subscription(getattr(self.topics, key), MESSAGE_TYPES[key], TOPIC_QOS[key],
+                              callback if log is None else self._recorded(key, callback))
+
+    def _record(self, key: str, message: Any) -> None:
+        if self.log is not None:
+            self.log.write(self.node.resolve(getattr(self.topics, key)), message)
+
+    def _recorded(self, key: str, callback: Callable[[Any], None]) -> Callable[[Any], None]:
+        def record_then_call(message: Any) -> None:
+            self._record(key, message)
+            callback(message)
+        return record_then_call
 
     # ---------------------------------------------------------------- SimLoop's hooks
     def messages(self, r: SensorReadings) -> list[tuple[str, object]]:
@@ -95,13 +106,11 @@ class SimNode(SimLoop):
 
     def publish_sensor(self, name: str, msg: Any) -> None:
         self.sensors[name].write(msg)
-        if self.on_publish is not None:
-            self.on_publish(name, msg)
+        self._record(name, msg)
 
     def publish_scoop(self, start: bool) -> None:
         self.scoop.write(Bool(start))
-        if self.on_publish is not None:
-            self.on_publish("scoop", Bool(start))
+        self._record("scoop", Bool(start))
 
     def shutting_down(self) -> bool:
         return self.stopping.is_set()
@@ -127,3 +136,5 @@ class SimNode(SimLoop):
 
     def close_transport(self) -> None:
         self.node.close()
+        if self.log is not None:
+            self.log.close()
