@@ -262,6 +262,8 @@ class PileConfig(ConfigModel):
     rolling_damping_nms: float = setting(0.5, "N*m*s/rad", "damping of particle spin when pile.rolling: the rolling "
                                          "resistance of angular gravel", 0.0, 10.0)
     across: int = setting(8, "-", "particles per row across the pile (y)", 1, 20)
+    max_layers: int = setting(0, "-", "most layers of the stack, the bottom row as long as they need (a long pile, as a "
+                              "shift's); 0: the smallest pyramid that holds the particles", 0, 20)
     jitter_m: float = setting(0.003, "m", "largest random offset of a particle's start position", 0.0, 0.02)
     settle_s: float = setting(1.0, "s", "physics time a new pile settles (then on until it rests, at most 3 s more)", 0.0, 5.0)
     variants: int = setting(16, "-", "distinct jittered piles per environment, each settled once and then reused", 1, 1024)
@@ -371,6 +373,8 @@ class ShiftConfig(ConfigModel):
     section = "shift"
     pile_particles: int = setting(360, "-", "particles in the shift's pile (360 of 0.3 kg: about 15 full scoops of "
                                   "the rated load); its slope and particles are pile.*", 1, 400)
+    pile_layers: int = setting(3, "-", "layers of the shift's pile (3: the single scoop's pile height, the pile "
+                               "longer instead)", 1, 20)
     haul_distance_m: float = setting(0.6, "m", "from the pile's toe back to the hopper's centre, along the loader's "
                                      "path", 0.0, 5.0)
     hopper_length_m: float = setting(0.5, "m", "inner length of the hopper along the loader's path", 0.2, 2.0)

@@ -82,14 +82,28 @@ def touching_cluster(positions_m: np.ndarray, radius_m: float, candidates: np.nd
     return cluster
 
 
-def toe_x_m(positions_m: np.ndarray, radius_m: float, pile: np.ndarray) -> float:
-    """The pile's toe: the front of its foremost particle resting on the ground (of any, if none does), world x, m."""
-    if not pile.any():
+FACE_HEIGHT_RADII = 2.5
+"""The face is found where the pile first stands this many particle radii high (two layers): a particle or two
+left lying in front of it do not make a toe."""
+
+
+def toe_x_m(positions_m: np.ndarray, radius_m: float, pile: np.ndarray, angle_deg: float,
+            path_half_width_m: float) -> float:
+    """The pile's toe on the loader's path, world x, m: where its face, sloping at ``angle_deg``, meets the ground.
+
+    Only the pile's particles within ``path_half_width_m`` of the path (y = 0) count: the bucket cuts a channel,
+    and what it leaves at the sides is not the face it meets. The face is the foremost point at which the pile's
+    top reaches :data:`FACE_HEIGHT_RADII` radii; the toe lies that height's run of the slope in front of it. A pile
+    lower than that everywhere has its toe at the front of its foremost particle.
+    """
+    on_pile = positions_m[pile & (np.abs(positions_m[:, 1]) <= path_half_width_m)]
+    if not len(on_pile):
         return float("nan")
-    on_pile = positions_m[pile]
-    grounded = on_pile[on_pile[:, 2] <= 1.5 * radius_m]
-    front = grounded if len(grounded) else on_pile
-    return float(front[:, 0].min() - radius_m)
+    face_height = FACE_HEIGHT_RADII * radius_m
+    high = on_pile[on_pile[:, 2] + radius_m >= face_height]
+    if not len(high):
+        return float(on_pile[:, 0].min() - radius_m)
+    return float(high[:, 0].min() - radius_m - face_height / np.tan(np.radians(angle_deg)))
 
 
 def account(positions_m: np.ndarray, radius_m: float, in_bucket: np.ndarray, delivered: np.ndarray,

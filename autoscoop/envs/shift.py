@@ -28,14 +28,16 @@ class ShiftScoopEnv(ScoopEnv):
 
 
 def shift_world_config(config: ScoopConfig) -> ScoopConfig:
-    """The config a shift runs in: ``config`` with the shift's pile (``shift.pile_particles``) in ``pile.n_particles``.
+    """The config a shift runs in: ``config`` with the shift's pile (``shift.pile_particles`` in ``shift.pile_layers``
+    layers) in ``pile.n_particles`` and ``pile.max_layers``.
 
     Raises:
         ValueError: the shift's settings cannot work (:func:`autoscoop.core.shift_checks.check_shift_config`), naming
             the key.
     """
     check_shift_config(config)
-    return config.replace(pile=config.pile.replace(n_particles=config.shift.pile_particles))
+    return config.replace(pile=config.pile.replace(n_particles=config.shift.pile_particles,
+                                                   max_layers=config.shift.pile_layers))
 
 
 def make_shift_env(config: ScoopConfig) -> gym.Env:

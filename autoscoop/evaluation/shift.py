@@ -31,6 +31,8 @@ from autoscoop.sim.work_meter import WorkMeter
 
 PROFILE_BIN_M = 0.05
 """Width of the bins of the pile's profile, m."""
+PHYSICS_ERROR = "physics_error"
+"""Ends the list of timed-out phases when the simulation diverged during the script."""
 EPISODE_SEEDS_PER_SHIFT = 1000
 """Cycle k of shift seed s scoops with episode seed ``s * 1000 + k``."""
 
@@ -83,8 +85,11 @@ def run_shift(policy: Policy, config: ScoopConfig, cycles: int, seed: int = 0, p
             scooped = sim.particles_in_bucket()
             delivered_before = int(sim.delivered.sum())
             timed_out: list[str] = []
+            steered = (0.0, 0.0)
             if not outcome.physics_error:
                 timed_out = _carry_dump_return(scoop_env, script, last_obs[-1], world)
+                if not timed_out or timed_out[-1] != PHYSICS_ERROR:
+                    steered = sim.align_with_pile()
             account = sim.account()
             cycle_s = float(sim.data.time) - start_s
             clock_s += cycle_s
@@ -96,7 +101,7 @@ def run_shift(policy: Policy, config: ScoopConfig, cycles: int, seed: int = 0, p
                 "episode_seed": seed * EPISODE_SEEDS_PER_SHIFT + k,
                 "scoop_success": outcome.success,
                 "scoop_reached": outcome.reached,
-                "physics_error": outcome.physics_error or not sim.is_finite(),
+                "physics_error": outcome.physics_error or PHYSICS_ERROR in timed_out or not sim.is_finite(),
                 "mass_scooped_kg": outcome.mass_kg,
                 "mass_delivered_kg": delivered * mass,
                 "spilled_on_way_kg": float((scooped & ~sim.delivered & ~account.bucket).sum()) * mass,
@@ -110,6 +115,8 @@ def run_shift(policy: Policy, config: ScoopConfig, cycles: int, seed: int = 0, p
                 "wheel_slip": meter.slip,
                 "timed_out_phases": timed_out,
                 "phase_times_s": dict(script.phase_times_s) if not outcome.physics_error else {},
+                "steered_offset_m": steered[0],
+                "steered_heading_deg": steered[1],
                 "shift_time_s": clock_s,
                 "particles": account.counts(),
                 "conserved": account.balanced(),
@@ -135,7 +142,8 @@ def _carry_dump_return(env: Any, script: CarryDumpScript, state: np.ndarray, con
     the hopper is spotted as the script drives to it and leaves, with what it received, after the back-off.
 
     Returns:
-        The phases that ended on their time limit; the time of each phase is then in ``script.phase_times_s``.
+        The phases that ended on their time limit (then :data:`PHYSICS_ERROR` if the simulation diverged); the time
+        of each phase is in ``script.phase_times_s``.
     """
     sim = env.sim
     hopper_x = -config.shift.haul_distance_m  # the toe was at x = 0 when the scoop began
@@ -156,7 +164,7 @@ def _carry_dump_return(env: Any, script: CarryDumpScript, state: np.ndarray, con
             return script.timed_out
         state, _, _, _, info = env.step(action)
         if info["physics_error"]:
-            return [*script.timed_out, script.phase]
+            return [*script.timed_out, PHYSICS_ERROR]
 
 
 def shift_totals(rows: list[dict[str, Any]]) -> dict[str, Any]:

@@ -23,14 +23,20 @@ GAP_M = 0.0005
 """Clearance added between neighbours so no two particles start in contact overlap."""
 
 
-def layer_rows(n_particles: int, across: int) -> list[int]:
-    """Rows in each layer, bottom first: the smallest pyramid b, b-1, ... that holds the particles."""
+def layer_rows(n_particles: int, across: int, max_layers: int = 0) -> list[int]:
+    """Rows in each layer, bottom first: the smallest pyramid b, b-1, ... that holds the particles; with
+    ``max_layers`` (0: no limit), its lowest ``max_layers`` layers only, the base as long as they need (a long pile)."""
     rows_needed = math.ceil(n_particles / across)
+
+    def holds(base: int) -> int:
+        layers = min(base, max_layers) if max_layers else base
+        return sum(base - k for k in range(layers))
+
     base = 1
-    while base * (base + 1) // 2 < rows_needed:
+    while holds(base) < rows_needed:
         base += 1
     rows, left = [], rows_needed
-    for k in range(base):
+    for k in range(min(base, max_layers) if max_layers else base):
         take = min(base - k, left)
         if take <= 0:
             break
@@ -59,7 +65,7 @@ def pile_layout(pile: PileConfig, rng: np.random.Generator | None = None) -> np.
     # 2 amp / tan(angle) keeps them clear of the layer below
     clearance = GAP_M + 2 * amp / math.tan(angle)
     centres = []
-    for k, n_rows in enumerate(layer_rows(pile.n_particles, pile.across)):
+    for k, n_rows in enumerate(layer_rows(pile.n_particles, pile.across, pile.max_layers)):
         x0 = pile.radius_m + k * row_spacing / 2
         z = pile.radius_m + k * (layer_height + clearance)
         for j in range(n_rows):

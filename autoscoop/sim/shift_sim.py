@@ -15,15 +15,19 @@ import functools
 import mujoco
 import numpy as np
 
+from autoscoop.core import kinematics
 from autoscoop.core.config import PileConfig, ScoopConfig
 from autoscoop.core.shift_accounting import ParticleAccount, account, toe_x_m, touching_cluster
 from autoscoop.sim.hopper import HOPPER_BODY, PARKED_POSITION_M, add_hopper, inside_hopper
 from autoscoop.sim.scene import ScoopSim, compile_scene
 
 DELIVERED_X_M, DELIVERED_Y_M = -6.0, -3.0
-"""Where delivered particles are kept (a row along -x from here, at rest on the ground): the load left with its truck."""
+"""Where delivered particles are kept (rows along -x from here, the next row further along -y, at rest on the
+ground): the load left with its truck."""
 DELIVERED_SPACING_RADII = 3.0
-"""Centres of kept particles this many radii apart along their row."""
+"""Centres of kept particles this many radii apart."""
+DELIVERED_PER_ROW = 40
+"""Kept particles per row."""
 
 
 class ShiftSim(ScoopSim):
@@ -72,8 +76,9 @@ class ShiftSim(ScoopSim):
         return touching_cluster(self.particle_positions, self.config.pile.radius_m, free)
 
     def toe_x_m(self) -> float:
-        """The pile's toe now, world x, m."""
-        return toe_x_m(self.particle_positions, self.config.pile.radius_m, self.pile_mask())
+        """The pile's toe on the loader's path now (within the bucket's width of y = 0), world x, m."""
+        return toe_x_m(self.particle_positions, self.config.pile.radius_m, self.pile_mask(), self.pile_angle_deg,
+                       kinematics.BUCKET_INNER_HALF_WIDTH_M)
 
     def recentre_on_toe(self) -> float:
         """Move the loader and every particle not delivered along x so that the toe is at x = 0; returns the move, m."""
@@ -86,6 +91,21 @@ class ShiftSim(ScoopSim):
         mujoco.mj_kinematics(self.model, self.data)
         self.toe_shift_m += toe
         return toe
+
+    def align_with_pile(self) -> tuple[float, float]:
+        """Put the loader, at rest, back on the pile's centre line (y = 0) facing +x, where it is along x: a driver
+        steers a skid-steer back after the pile pushed it aside (the scoop's drive command cannot steer).
+
+        Returns:
+            The loader's sideways offset (m) and heading (deg) before the correction.
+        """
+        position, rotation = self.chassis_pose
+        offset_m, heading_deg = float(position[1]), float(np.degrees(np.arctan2(rotation[1, 0], rotation[0, 0])))
+        self.set_pose(float(position[0]), self.lift_rad, self.tilt_rad)
+        root_dof = self.model.joint("root").dofadr[0]
+        self.data.qvel[root_dof:root_dof + 6] = 0.0
+        mujoco.mj_forward(self.model, self.data)
+        return offset_m, heading_deg
 
     # ---------------------------------------------------------------- the hopper
     @property
@@ -110,17 +130,18 @@ class ShiftSim(ScoopSim):
         radius = self.config.pile.radius_m
         kept = int(self.delivered.sum())
         for k, index in enumerate(received):
-            x = DELIVERED_X_M - DELIVERED_SPACING_RADII * radius * (kept + k)
-            self.set_particle(int(index), np.array([x, DELIVERED_Y_M, radius]))
+            row, place = divmod(kept + k, DELIVERED_PER_ROW)
+            spacing = DELIVERED_SPACING_RADII * radius
+            self.set_particle(int(index), np.array([DELIVERED_X_M - spacing * place, DELIVERED_Y_M - spacing * row, radius]))
         self.delivered[received] = True
         self.data.mocap_pos[self._hopper] = PARKED_POSITION_M
         mujoco.mj_forward(self.model, self.data)
         return len(received)
 
     def delivered_kept(self) -> np.ndarray:
-        """(n,) particles lying in the row where delivered particles are kept."""
+        """(n,) particles lying, at rest on the ground, where delivered particles are kept."""
         positions, radius = self.particle_positions, self.config.pile.radius_m
-        return (np.abs(positions[:, 1] - DELIVERED_Y_M) <= radius) & (positions[:, 0] <= DELIVERED_X_M + radius) \
+        return (positions[:, 1] <= DELIVERED_Y_M + radius) & (positions[:, 0] <= DELIVERED_X_M + radius) \
             & (np.abs(positions[:, 2] - radius) <= radius)
 
     def account(self) -> ParticleAccount:
