@@ -17,6 +17,7 @@ COMMANDS = [
     "autoscoop.commands.teleop_cmd",
     "autoscoop.commands.evaluate_cmd",
     "autoscoop.commands.stress_cmd",
+    "autoscoop.commands.shift_cmd",
     "autoscoop.commands.train_cmd",
     "autoscoop.commands.sweep_cmd",
     "autoscoop.commands.bench_cmd",

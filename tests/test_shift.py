@@ -2,11 +2,14 @@
 
 from __future__ import annotations
 
+import json
+
 import mujoco
 import numpy as np
 import pytest
 
 from autoscoop.agents.heuristic import HeuristicScooper
+from autoscoop.cli import main
 from autoscoop.core.config import ConfigError, ScoopConfig
 from autoscoop.core.shift_accounting import account, toe_x_m, touching_cluster
 from autoscoop.core.shift_checks import check_shift_config
@@ -226,3 +229,35 @@ def test_the_defaults_make_a_valid_shift_of_fifteen_full_scoops():
     config = ScoopConfig()
     check_shift_config(config)
     assert config.shift.pile_particles * config.pile.particle_mass_kg >= 15 * config.reward.rated_load_kg
+
+
+# ------------------------------------------------------------------ the command
+def test_the_shift_command_writes_its_json_and_report(tmp_path, capsys):
+    out, summary = tmp_path / "report", tmp_path / "shift.json"
+    code = main(["shift", "--policy", "heuristic", "--cycles", "1", "--set", "shift.pile_particles=72",
+                 "--set", "pile.variants=1", "--json", str(summary), "--out", str(out)])
+    assert code == 0
+    data = json.loads(summary.read_text())
+    assert [s["policy"] for s in data["shifts"]] == ["heuristic"] and len(data["shifts"][0]["cycles"]) == 1
+    assert data["summary"]["heuristic"]["conserved"] is True
+    assert data["conditions"]["haul_distance_m"] == ScoopConfig().shift.haul_distance_m
+    report = (out / "shift.md").read_text()
+    assert "## Conditions" in report and "λ^2.5" in report
+    assert all((out / name).stat().st_size > 0 for name in ("shift_fill_cycle_time.png", "shift_pile_profiles.png",
+                                                            "shift_delivered.png"))
+    assert "delivered (t/h)" in capsys.readouterr().out
+
+
+@pytest.mark.parametrize(("setting", "key"), [
+    ("shift.hopper_height_m=0.5", "shift.hopper_height_m"),
+    ("shift.haul_distance_m=-1", "shift.haul_distance_m"),
+    ("shift.pile_particles=10", "shift.pile_particles"),
+])
+def test_the_shift_command_refuses_bad_input_naming_the_key_before_simulating(setting, key, capsys, monkeypatch):
+    def no_simulation(*args, **kwargs):
+        raise AssertionError("simulated")
+
+    monkeypatch.setattr("autoscoop.evaluation.shift.run_shift", no_simulation)
+    assert main(["shift", "--policy", "heuristic", "--cycles", "1", "--set", setting]) == 2
+    error = capsys.readouterr().err
+    assert key in error and "Traceback" not in error

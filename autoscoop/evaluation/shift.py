@@ -12,12 +12,15 @@ of the shift), so the pile's profiles show the face retreating.
 from __future__ import annotations
 
 import math
+import multiprocessing
 from collections.abc import Callable
+from concurrent.futures import ProcessPoolExecutor
 from typing import Any
 
 import numpy as np
 from tqdm import tqdm
 
+from autoscoop.agents.loading import load_policy
 from autoscoop.core.config import ScoopConfig
 from autoscoop.core.policy import Policy, config_for_policy
 from autoscoop.core.shift_accounting import pile_profile
@@ -27,6 +30,7 @@ from autoscoop.core.state import CommandLimits
 from autoscoop.core.version import __version__
 from autoscoop.envs.rollout import rollout
 from autoscoop.envs.shift import make_shift_env, shift_world_config
+from autoscoop.evaluation.stress import one_thread_per_worker
 from autoscoop.sim.work_meter import WorkMeter
 
 PROFILE_BIN_M = 0.05
@@ -229,3 +233,46 @@ def shift_conditions(config: ScoopConfig) -> dict[str, Any]:
         "rated_load_kg": config.reward.rated_load_kg,
         "max_speed_mps": config.robot.max_speed_mps,
     }
+
+
+def run_shifts(specs: list[str], config: ScoopConfig, cycles: int, seeds: list[int], workers: int = 1,
+               trust: bool = False, progress: bool = True) -> list[dict[str, Any]]:
+    """Run a shift for every policy and seed: the policies side by side on the same shifts.
+
+    Args:
+        specs: policies as :func:`autoscoop.agents.loading.load_policy` names them (``default``, ``heuristic``, a file).
+        config: the config (``shift.*``).
+        cycles: loading cycles per shift.
+        seeds: the shifts' seeds, the same for every policy.
+        workers: processes sharing the shifts (spawned; the results do not depend on it).
+        trust: allow an SB3 .zip policy (loading one unpickles it).
+        progress: show progress bars.
+
+    Returns:
+        One :func:`run_shift` dict per (policy, seed), the policies in order, each over ``seeds``, with ``policy`` the
+        spec as given.
+
+    Raises:
+        ValueError: the shift's settings cannot work, or a policy cannot be loaded, before any simulation.
+    """
+    shift_world_config(config)  # every settings error before the first shift
+    for spec in specs:
+        load_policy(spec, config, trust=trust)
+    jobs = [(spec, seed) for spec in specs for seed in seeds]
+    if workers == 1 or len(jobs) == 1:
+        return [_shift_of_spec(spec, config.to_dict(), cycles, seed, trust, progress) for spec, seed in jobs]
+    context = multiprocessing.get_context("spawn")
+    with ProcessPoolExecutor(max_workers=min(workers, len(jobs)), mp_context=context,
+                             initializer=one_thread_per_worker) as pool:
+        futures = [pool.submit(_shift_of_spec, spec, config.to_dict(), cycles, seed, trust, False) for spec, seed in jobs]
+        bar = tqdm(futures, desc=f"shifts ({min(workers, len(jobs))} workers)", unit="shift", disable=not progress)
+        return [future.result() for future in bar]
+
+
+def _shift_of_spec(spec: str, config: dict[str, Any], cycles: int, seed: int, trust: bool,
+                   progress: bool) -> dict[str, Any]:
+    """One shift of the policy named ``spec`` (in a worker process, or here)."""
+    built = ScoopConfig.from_dict(config)
+    result = run_shift(load_policy(spec, built, trust=trust), built, cycles, seed=seed, progress=progress,
+                       label=f"shift {spec} seed {seed}")
+    return {**result, "policy": spec}

@@ -233,7 +233,7 @@ def _run_case_in_worker(policy: str, config: dict[str, Any], case: StressCase, e
     return run_case(policy, ScoopConfig.from_dict(config), case, episodes, seed, trust=trust, progress=False)
 
 
-def _one_thread_per_worker() -> None:
+def one_thread_per_worker() -> None:
     """Worker set-up: one math thread each (torch, BLAS), so ``--workers N`` uses N cores, not N x all."""
     for name in ("OMP_NUM_THREADS", "MKL_NUM_THREADS", "OPENBLAS_NUM_THREADS"):
         os.environ.setdefault(name, "1")
@@ -271,7 +271,7 @@ def run_stress(policy: str, config: ScoopConfig, episodes: int, seed: int = 0,
                 for case in cases]
     context = multiprocessing.get_context("spawn")
     with ProcessPoolExecutor(max_workers=min(workers, len(cases)), mp_context=context,
-                             initializer=_one_thread_per_worker) as pool:
+                             initializer=one_thread_per_worker) as pool:
         futures = [pool.submit(_run_case_in_worker, policy, config.to_dict(), case, episodes, seed, trust)
                    for case in cases]
         bar = tqdm(total=len(cases), desc=f"stress ({min(workers, len(cases))} workers)", unit="case",
