@@ -26,6 +26,7 @@ COMMANDS = [
     "autoscoop.commands.export_cmd",
     "autoscoop.commands.ros_cmd",
     "autoscoop.commands.ros2_cmd",
+    "autoscoop.commands.replay_cmd",
 ]
 """Modules that each offer ``register(subparsers)``; a new command adds one line here."""
 

@@ -116,7 +116,7 @@ def test_a_bad_choice_is_refused_before_any_work(argv, named, tmp_path, capsys):
 
 REQUIRED = {"stress": ["--json", "{tmp}/s.json", "--out", "{tmp}/s"], "export": ["--onnx", "{tmp}/x.onnx"],
             "train": ["--out", "{tmp}/run"], "compare": ["--out", "{tmp}/c"], "demo": ["--out", "{tmp}/d"],
-            "teleop": ["--out", "{tmp}/m"]}
+            "teleop": ["--out", "{tmp}/m"], "replay": ["{tmp}/log.mcap", "--out", "{tmp}/r"]}
 """what a command needs besides ``--set`` to get as far as reading its config, all under the test's folder."""
 
 

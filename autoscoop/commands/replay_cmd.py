@@ -1,0 +1,90 @@
+"""``autoscoop replay LOG --policy P``: a robot's log through the controller, offline, before it drives.
+
+Reads a ROS 1 ``.bag``, a ROS 2 bag folder or an MCAP file (``autoscoop ros2 controller|sim --record``,
+``ros2 bag record``, ``rosbag record``), feeds the recorded readings to the controller core at their
+log times with their stamps (the watchdog judging them as on the robot), and writes, in --out:
+
+- ``replay.csv``: per update, what was commanded (``sent_*``, empty where the log has no command) beside
+  what the policy would have commanded, with the watchdog's verdict (``mode``, ``reason``);
+- ``replay.png``: both against time, the spans where the controller stopped the robot marked.
+
+Topic names come from the robot YAML (--config), relative to --namespace. Updates happen at the logged
+commands' times (--schedule recorded, the default when the log has cmd_vel: on a log of
+``ros2 controller --record`` the same policy reproduces the commands sent) or at the controller's own
+control periods and watchdog expiries (--schedule own).
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+from pathlib import Path
+
+from autoscoop.commands import check_output_dir, check_output_file, options, write_json
+from autoscoop.commands.ros_cmd import build_controller
+
+
+def register(subparsers: argparse._SubParsersAction) -> None:
+    parser = subparsers.add_parser("replay", help="replay a robot's log (ROS 1/2 bag, MCAP) through a policy, offline",
+                                   description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("log", type=Path, metavar="LOG", help="a ROS 1 .bag, a ROS 2 bag folder or an .mcap file")
+    options.add_policy_option(parser, accepts="default (shipped), heuristic, a .onnx file or a policy file")
+    parser.add_argument("--config", type=Path, help="the robot's YAML: topics, limits, timeouts, calibration")
+    options.add_set_option(parser, "scene/task config the policy was made for, e.g. --set pile.angle_deg=28")
+    options.add_trust_option(parser)
+    parser.add_argument("--namespace", default="/", help="the namespace the robot's topics lie in (default /)")
+    parser.add_argument("--schedule", choices=("recorded", "own"), default=None,
+                        help="update at the logged commands' times (default when the log has cmd_vel) or on the "
+                             "controller's own control periods")
+    options.add_out_option(parser, Path("out/replay"), "folder for replay.csv and replay.png")
+    options.add_json_option(parser, "the summary (largest differences, verdicts)")
+    parser.set_defaults(func=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    from autoscoop.deploy import replay  # noqa: PLC0415
+
+    check_output_dir(args.out, "--out")
+    if args.json:
+        check_output_file(args.json, "--json")
+    core = build_controller(args)
+    core.log = lambda level, text: None  # the verdicts are in the CSV, not one line per transition
+    topics = core.config.topics
+    needed = ("joint_states", "odom", "pile_range", *replay.payload_inputs(core.config.payload), "scoop")
+    try:
+        log = replay.read_log(args.log, topics, needed, args.namespace)
+    except ImportError as error:
+        print(f"autoscoop replay: error: the ros2 extra is needed: pip install 'autoscoop[ros2]' ({error})")
+        return 2
+    has_commands = any(m.key == "cmd_vel" for m in log)
+    schedule = args.schedule or ("recorded" if has_commands else "own")
+    if schedule == "recorded" and not has_commands:
+        raise replay.LogError(f"{args.log}: --schedule recorded needs the commands sent (topics.cmd_vel "
+                              f"{topics.cmd_vel!r}), which the log does not have; use --schedule own")
+    rows = replay.Replay(core).run(log, schedule)
+    from autoscoop.core.safe_files import write_text_atomically  # noqa: PLC0415
+
+    write_text_atomically(args.out / "replay.csv", replay.rows_as_csv(rows))
+    biggest = replay.differences(rows)
+    verdicts = {mode: sum(r.mode == mode for r in rows) for mode in ("running", "idle", "fault", "estop")}
+    try:
+        from autoscoop.report.replay_figure import plot_replay  # noqa: PLC0415
+
+        channels = ("speed_mps", "lift_rad", "tilt_rad")
+        plot_replay([r.time_s for r in rows], {c: [getattr(r, f"sent_{c}") for r in rows] for c in channels},
+                    {c: [getattr(r, c) for r in rows] for c in channels}, [r.mode for r in rows],
+                    args.out / "replay.png", title=f"{args.log.name}: {args.policy} ({schedule} schedule)")
+        figure = str(args.out / "replay.png")
+    except ImportError:
+        figure = None
+    print(f"{args.log}: {len(log)} messages, {len(rows)} updates ({schedule} schedule), policy {args.policy}")
+    for channel, value in biggest.items():
+        print(f"  largest |sent - replayed| {channel}: " + ("n/a" if math.isnan(value) else f"{value:.3g}"))
+    print("  verdicts: " + ", ".join(f"{mode} {count}" for mode, count in verdicts.items()))
+    print(f"wrote {args.out / 'replay.csv'}" + (f" and {figure}" if figure else " (no figure: matplotlib missing)"))
+    if args.json:
+        write_json(args.json, {"log": str(args.log), "policy": args.policy, "schedule": schedule,
+                               "messages": len(log), "updates": len(rows),
+                               "max_difference": {k: (None if math.isnan(v) else v) for k, v in biggest.items()},
+                               "verdicts": verdicts, "csv": str(args.out / "replay.csv"), "figure": figure})
+    return 0
