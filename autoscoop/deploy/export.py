@@ -175,6 +175,6 @@ def exportable_actor(policy: Any) -> Any:
                "a Stable-Baselines3 model; export its run's policy.safetensors" if hasattr(policy, "model") else
                "the heuristic is a script")
         shown = str(getattr(policy, "path", None) or getattr(policy, "name", policy))
-        raise ValueError(f"policy {shown!r} has no torch actor to export ({why}); export a "
+        raise ValueError(f"policy {shown!r} has no neural network to export ({why}); export a "
                          "trained policy: default, a .safetensors file or a run directory")
     return actor
