@@ -4,6 +4,7 @@ Skipped only where ROS 1 cannot be had (``make test`` installs Debian's packages
 controller under test runs the heuristic; a stand-in robot in this process publishes the sensors.
 """
 
+import importlib.util
 import json
 import math
 import subprocess
@@ -29,6 +30,8 @@ from autoscoop.evaluation.evaluate import summarize
 pytestmark = pytest.mark.filterwarnings("ignore:notifyAll:DeprecationWarning")  # inside Debian's rospy
 
 CONFIG = RobotNodeConfig()
+HAVE_ROSBAGS = importlib.util.find_spec("rosbags") is not None
+"""the ros2 extra: ros sim --bag and autoscoop replay"""
 PERIOD, TIMEOUT = CONFIG.control.control_period_s, CONFIG.control.input_timeout_s
 LIMITS = CONFIG.limits
 
@@ -140,7 +143,8 @@ def test_sim_and_controller_scoop_over_ros_with_remapped_topics(master, tmp_path
     out = tmp_path / "ros_sim.json"
     try:
         sim = subprocess.run([sys.executable, "-m", "autoscoop.cli", "ros", "sim", "--episodes", "1", "--json",
-                              str(out), "--set", "pile.variants=1", "--joint-noise-rad", "0.001", remap],
+                              str(out), "--set", "pile.variants=1", "--joint-noise-rad", "0.001",
+                              *(["--bag", str(tmp_path / "sim.bag")] if HAVE_ROSBAGS else []), remap],
                              env=dict(master.env, ROS_NAMESPACE="e2e"), capture_output=True, text=True, timeout=120)
     finally:
         log = stop(controller)
@@ -157,3 +161,16 @@ def test_sim_and_controller_scoop_over_ros_with_remapped_topics(master, tmp_path
     assert summary["ros"]["real_time_factor"] > 0.5
     records = sorted((tmp_path / "robot").glob("*.npz"))
     assert records and len(load_record(records[0])) >= 5, log[-3000:]
+
+    if not HAVE_ROSBAGS:
+        return
+    # the simulator's ROS 1 bag, replayed with the same policy, gives the commands that were sent
+    (tmp_path / "robot.yaml").write_text("topics:\n  joint_states: sensors/joints\n")
+    replay = subprocess.run([sys.executable, "-m", "autoscoop.cli", "replay", str(tmp_path / "sim.bag"), "--policy",
+                             "heuristic", "--namespace", "/e2e", "--config", str(tmp_path / "robot.yaml"), "--out",
+                             str(tmp_path / "replay"), "--json", str(tmp_path / "replay.json")],
+                            capture_output=True, text=True, timeout=120)
+    assert replay.returncode == 0, replay.stdout + replay.stderr
+    replayed = json.loads((tmp_path / "replay.json").read_text())
+    assert replayed["verdicts"]["running"] >= 5, replayed
+    assert all(v is not None and v <= 1e-6 for v in replayed["max_difference"].values()), replayed

@@ -34,6 +34,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     sim = nodes.add_parser("sim", help="the MuJoCo scene behind the robot's topics (like Gazebo)",
                            description=_SIM_DOC, formatter_class=argparse.RawDescriptionHelpFormatter)
     add_sim_options(sim)
+    sim.add_argument("--bag", type=bag_path, metavar="FILE.bag",
+                     help="record the node's topics to this ROS 1 bag (needs the ros2 extra's rosbags): every "
+                          "sensor message and scoop flag as published, every command as it arrived")
     sim.add_argument("remap", nargs="*", type=ros_remap, metavar="NAME:=NEW", help="ROS remappings")
     sim.set_defaults(func=run_sim)
 
@@ -146,11 +149,26 @@ def run_controller(args: argparse.Namespace) -> int:
         return 2
 
 
+def bag_path(text: str) -> Path:
+    """``type=`` of ``--bag``: a path ending in ``.bag``."""
+    if not text.endswith(".bag"):
+        raise argparse.ArgumentTypeError(f"{text!r}: a ROS 1 bag's name ends in .bag")
+    return Path(text)
+
+
 def run_sim(args: argparse.Namespace) -> int:
+    if args.bag:
+        check_output_file(args.bag, "--bag")
+
     def run_node(bridge):
         from autoscoop.deploy.ros1.sim_node import SimNode  # noqa: PLC0415
 
-        return SimNode(bridge).run(args.episodes, seed=args.seed, wait_for_controller_s=args.wait_s)
+        log = None
+        if args.bag:
+            from autoscoop.deploy.ros1.bag_log import Ros1BagLog  # noqa: PLC0415
+
+            log = Ros1BagLog(args.bag)
+        return SimNode(bridge, log=log).run(args.episodes, seed=args.seed, wait_for_controller_s=args.wait_s)
 
     from autoscoop.deploy.ros1 import RosUnavailable  # noqa: PLC0415
 

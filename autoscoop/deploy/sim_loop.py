@@ -21,7 +21,7 @@ import threading
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, Protocol
 
 import numpy as np
 
@@ -32,6 +32,14 @@ SETTLE_S = 0.5
 """Readings of a reset scene are published this long (plus the delay) before the episode starts."""
 FIRST_COMMAND_TIMEOUT_S = 2.0
 """After ``scoop`` true, the physics waits this long at most for the controller's first command."""
+
+
+class BagLog(Protocol):
+    """Where a node records its topics (an MCAP file for ROS 2, a ROS 1 bag)."""
+
+    def write(self, topic: str, message: Any) -> None: ...
+
+    def close(self) -> None: ...
 
 
 @dataclass
@@ -60,10 +68,13 @@ class SimLoop:
     Args:
         bridge: the simulator.
         delay_s: delay of every sensor message, s; default: the bridge's ``sensor.delay_s``.
+        log: a bag (``write(topic, message)``, ``close()``) that gets every message published, when
+            published, and every command, when it arrived; closed when :meth:`run` ends.
     """
 
-    def __init__(self, bridge: SimBridge, delay_s: float | None = None) -> None:
+    def __init__(self, bridge: SimBridge, delay_s: float | None = None, log: BagLog | None = None) -> None:
         self.bridge = bridge
+        self.log = log
         self.delay_s = bridge.task_config.sensor.delay_s if delay_s is None else delay_s
         self.topics = bridge.robot.topics
         self.lock = threading.Lock()
@@ -85,8 +96,12 @@ class SimLoop:
         """Publish a sensor message on the topic of key ``name``."""
         raise NotImplementedError
 
-    def publish_scoop(self, start: bool) -> None:
-        """Publish ``scoop``: true when an episode starts, false when it ends."""
+    def publish_scoop(self, start: bool) -> object:
+        """Publish ``scoop``: true when an episode starts, false when it ends; the message published."""
+        raise NotImplementedError
+
+    def topic_name(self, key: str) -> str:
+        """The resolved name of the topic of key ``key`` (for the bag)."""
         raise NotImplementedError
 
     def wait_for_controller(self, timeout_s: float) -> None:
@@ -130,8 +145,23 @@ class SimLoop:
         self._command("tilt", msg.data)
 
     def command_callbacks(self) -> dict[str, Callable[[Any], None]]:
-        """The callback of each command topic, by topic key."""
-        return {"cmd_vel": self.on_speed, "lift_command": self.on_lift, "tilt_command": self.on_tilt}
+        """The callback of each command topic, by topic key (each message logged first, with a log)."""
+        callbacks = {"cmd_vel": self.on_speed, "lift_command": self.on_lift, "tilt_command": self.on_tilt}
+        return {key: self._logged(key, callback) for key, callback in callbacks.items()}
+
+    def record(self, key: str, msg: object) -> None:
+        """Log ``msg`` on the topic of key ``key``, now (without a log, nothing)."""
+        if self.log is not None:
+            self.log.write(self.topic_name(key), msg)
+
+    def _logged(self, key: str, callback: Callable[[Any], None]) -> Callable[[Any], None]:
+        if self.log is None:
+            return callback
+
+        def record_then_call(msg: Any) -> None:
+            self.record(key, msg)
+            callback(msg)
+        return record_then_call
 
     def _take_commands(self) -> list[tuple[str, float]]:
         with self.lock:
@@ -149,6 +179,7 @@ class SimLoop:
         """Publish the messages whose delay has passed."""
         for name, msg in self.line.pop_due(time.monotonic()):
             self.publish_sensor(name, msg)
+            self.record(name, msg)
 
     def wait_until(self, deadline: float) -> None:
         """Publish due messages until ``deadline`` (monotonic s)."""
@@ -189,7 +220,7 @@ class SimLoop:
             tick += period
             self.wait_until(tick)
         self.live.set()
-        self.publish_scoop(True)
+        self.record("scoop", self.publish_scoop(True))
         tick = self.first_command(time.monotonic() + FIRST_COMMAND_TIMEOUT_S) + period / 2
         self.wait_until(tick)
         start_wall = time.monotonic()
@@ -207,7 +238,7 @@ class SimLoop:
                 tick = max(tick, time.monotonic() - 2 * period)  # behind: catch up a little, never in a burst
             self.wait_until(tick)
         self.live.clear()
-        self.publish_scoop(False)
+        self.record("scoop", self.publish_scoop(False))
         if not bridge.done:
             return None, readings.time_s
         self.stats.sim_s.append(readings.time_s)
@@ -237,4 +268,6 @@ class SimLoop:
                 index += 1
         finally:
             self.close_transport()
+            if self.log is not None:
+                self.log.close()
         return results, self.stats

@@ -18,7 +18,7 @@ from typing import Any
 
 from autoscoop.deploy.ros1 import import_rospy, publishers, subscribers
 from autoscoop.deploy.sim_bridge import SensorReadings, SimBridge
-from autoscoop.deploy.sim_loop import SimLoop
+from autoscoop.deploy.sim_loop import BagLog, SimLoop
 
 NODE_NAME = "autoscoop_sim"
 
@@ -31,11 +31,13 @@ class SimNode(SimLoop):
         delay_s: delay of every sensor message, s; default: the bridge's ``sensor.delay_s``.
         argv: command-line arguments with ROS remappings; default ``sys.argv``.
         node_name: the node's name.
+        log: a ROS 1 bag (:class:`~autoscoop.deploy.ros1.bag_log.Ros1BagLog`) for every message published and
+            every command received.
     """
 
     def __init__(self, bridge: SimBridge, delay_s: float | None = None, argv: list[str] | None = None,
-                 node_name: str = NODE_NAME) -> None:
-        super().__init__(bridge, delay_s)
+                 node_name: str = NODE_NAME, log: BagLog | None = None) -> None:
+        super().__init__(bridge, delay_s, log)
         self.rospy = rospy = import_rospy()
         topics = self.topics
         rospy.init_node(node_name, argv=argv, anonymous=False)
@@ -70,10 +72,15 @@ class SimNode(SimLoop):
     def publish_sensor(self, name: str, msg: Any) -> None:
         self.sensors[name].publish(msg)
 
-    def publish_scoop(self, start: bool) -> None:
+    def publish_scoop(self, start: bool) -> Any:
         from std_msgs.msg import Bool  # noqa: PLC0415
 
-        self.scoop.publish(Bool(start))
+        message = Bool(start)
+        self.scoop.publish(message)
+        return message
+
+    def topic_name(self, key: str) -> str:
+        return self.rospy.resolve_name(getattr(self.topics, key))
 
     def shutting_down(self) -> bool:
         return self.rospy.is_shutdown()

@@ -78,27 +78,15 @@ class SimNode(SimLoop):
     def __init__(self, bridge: SimBridge, delay_s: float | None = None, remaps: Iterable[str] = (),
                  node_name: str = NODE_NAME, namespace: str | None = None,
                  ros_clock: Callable[[], float] = time.time, log: McapLog | None = None) -> None:
-        super().__init__(bridge, delay_s)
+        super().__init__(bridge, delay_s, log)
         self.node = node = Ros2Node(node_name, remaps, namespace)
         self.ros_clock = ros_clock
-        self.log = log
         self.stopping = threading.Event()
         self.sensors = {key: node.publisher(getattr(self.topics, key), MESSAGE_TYPES[key], TOPIC_QOS[key])
                         for key in SENSOR_TOPICS}
         self.scoop = node.publisher(self.topics.scoop, Bool, COMMANDS)
         for key, callback in self.command_callbacks().items():
-            node.subscription(getattr(self.topics, key), MESSAGE_TYPES[key], TOPIC_QOS[key],
-                              callback if log is None else self._recorded(key, callback))
-
-    def _record(self, key: str, message: Any) -> None:
-        if self.log is not None:
-            self.log.write(self.node.resolve(getattr(self.topics, key)), message)
-
-    def _recorded(self, key: str, callback: Callable[[Any], None]) -> Callable[[Any], None]:
-        def record_then_call(message: Any) -> None:
-            self._record(key, message)
-            callback(message)
-        return record_then_call
+            node.subscription(getattr(self.topics, key), MESSAGE_TYPES[key], TOPIC_QOS[key], callback)
 
     # ---------------------------------------------------------------- SimLoop's hooks
     def messages(self, r: SensorReadings) -> list[tuple[str, object]]:
@@ -106,11 +94,14 @@ class SimNode(SimLoop):
 
     def publish_sensor(self, name: str, msg: Any) -> None:
         self.sensors[name].write(msg)
-        self._record(name, msg)
 
-    def publish_scoop(self, start: bool) -> None:
-        self.scoop.write(Bool(start))
-        self._record("scoop", Bool(start))
+    def publish_scoop(self, start: bool) -> Bool:
+        message = Bool(start)
+        self.scoop.write(message)
+        return message
+
+    def topic_name(self, key: str) -> str:
+        return self.node.resolve(getattr(self.topics, key))
 
     def shutting_down(self) -> bool:
         return self.stopping.is_set()
@@ -136,5 +127,3 @@ class SimNode(SimLoop):
 
     def close_transport(self) -> None:
         self.node.close()
-        if self.log is not None:
-            self.log.close()
