@@ -1,17 +1,20 @@
 """Fill factor over ROS (``autoscoop ros sim`` + ``autoscoop ros controller``) against ``autoscoop eval``.
 
-Starts a private rosmaster, the controller and the simulator (same pile, same seeds as evaluation),
+Starts a private rosmaster (``--ros 2``: Cyclone DDS on the loopback interface in a DDS domain of its
+own, with ``autoscoop ros2 sim`` + ``autoscoop ros2 controller``), the controller and the simulator (same pile, same seeds as evaluation),
 runs N episodes in real time, then evaluates the same policy for the same seeds without ROS, with
 the same sensor link (``sensor.delay_s`` and the noise keys) and the same mass source, and prints both with the topics' delay (stamp -> arrival, measured by the controller) and the
 simulator's real-time factor. Acceptance: mean fill factors within 10 points.
 
     .venv/bin/python benchmarks/ros_vs_eval.py --episodes 20 --json out/ros_vs_eval.json
     .venv/bin/python benchmarks/ros_vs_eval.py --episodes 20 --delay-s 0.05 --noise   # a harsher link
+    .venv/bin/python benchmarks/ros_vs_eval.py --ros 2 --episodes 20 --delay-s 0.05 --noise   # over ROS 2
 """
 
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import subprocess
 import sys
@@ -23,6 +26,7 @@ from autoscoop.agents.loading import load_policy
 from autoscoop.commands.ros_cmd import LINK_OPTIONS
 from autoscoop.core.config import ScoopConfig
 from autoscoop.deploy.ros1.master import RosMaster
+from autoscoop.deploy.ros2.graph import loopback_environment
 from autoscoop.envs.records import load_record
 from autoscoop.evaluation.evaluate import evaluate, summarize
 
@@ -48,25 +52,27 @@ def eval_config(delay_s: float, noise: bool, robot_config: Path | None = None) -
 
 
 def measure(policy: str, episodes: int, delay_s: float, noise: bool, seed: int = 0,
-            robot_config: Path | None = None) -> dict:
+            robot_config: Path | None = None, ros_version: int = 1) -> dict:
     work = Path(tempfile.mkdtemp(prefix="autoscoop-ros-vs-eval-"))
     cli = [sys.executable, "-m", "autoscoop.cli"]
-    with RosMaster() as master:
+    command, records = ("ros", "--record") if ros_version == 1 else ("ros2", "--records")
+    with RosMaster() if ros_version == 1 else contextlib.nullcontext() as master:
+        env = master.env if ros_version == 1 else loopback_environment()
         robot = ["--config", str(robot_config)] if robot_config else []
-        controller = subprocess.Popen([*cli, "ros", "controller", "--policy", policy, "--record", str(work / "robot"),
+        controller = subprocess.Popen([*cli, command, "controller", "--policy", policy, records, str(work / "robot"),
                                        *robot],
-                                      env=master.env, stdout=open(work / "controller.log", "w"),
+                                      env=env, stdout=open(work / "controller.log", "w"),
                                       stderr=subprocess.STDOUT)
         started = time.monotonic()
         try:
-            sim = subprocess.run([*cli, "ros", "sim", "--episodes", str(episodes), "--seed", str(seed), "--json",
+            sim = subprocess.run([*cli, command, "sim", "--episodes", str(episodes), "--seed", str(seed), "--json",
                                   str(work / "ros.json"), "--delay-s", str(delay_s), *(NOISE if noise else [])],
-                                 env=master.env, capture_output=True, text=True, timeout=60 + 15 * episodes)
+                                 env=env, capture_output=True, text=True, timeout=60 + 15 * episodes)
         finally:
             controller.terminate()
             controller.wait(timeout=15)
         if sim.returncode != 0:
-            raise RuntimeError(f"ros sim failed:\n{sim.stdout[-2000:]}\n{sim.stderr[-2000:]}")
+            raise RuntimeError(f"{command} sim failed:\n{sim.stdout[-2000:]}\n{sim.stderr[-2000:]}")
         ros_wall = time.monotonic() - started
     ros = json.loads((work / "ros.json").read_text())
     config = eval_config(delay_s, noise, robot_config)
@@ -77,7 +83,7 @@ def measure(policy: str, episodes: int, delay_s: float, noise: bool, seed: int =
     keys = ("fill_factor_mean", "fill_factor_std", "success_rate", "cycle_time_mean", "cycle_time_std",
             "mass_kg_mean", "spillage_mean")
     return {
-        "policy": policy, "robot_config": str(robot_config) if robot_config else None, "episodes": episodes,
+        "ros_version": ros_version, "policy": policy, "robot_config": str(robot_config) if robot_config else None, "episodes": episodes,
         "seed": seed, "delay_s": delay_s, "noise": noise,
         "ros": {k: ros[k] for k in keys}, "eval": {k: ev[k] for k in keys},
         "fill_difference_points": 100 * (ros["fill_factor_mean"] - ev["fill_factor_mean"]),
@@ -95,16 +101,19 @@ def main() -> int:
     parser.add_argument("--noise", action="store_true", help="sensor noise: " + " ".join(NOISE))
     parser.add_argument("--robot-config", type=Path,
                         help="the controller's YAML, e.g. with payload: {source: topic} (the simulator's true mass)")
+    parser.add_argument("--ros", type=int, choices=(1, 2), default=1,
+                        help="ROS 1 (a private rosmaster) or ROS 2 (Cyclone DDS on loopback); default 1")
     parser.add_argument("--json", type=Path)
     args = parser.parse_args()
-    r = measure(args.policy, args.episodes, args.delay_s, args.noise, robot_config=args.robot_config)
+    r = measure(args.policy, args.episodes, args.delay_s, args.noise, robot_config=args.robot_config,
+                ros_version=args.ros)
     for side in ("ros", "eval"):
         s = r[side]
         cycle = "n/a" if s["cycle_time_mean"] is None else f"{s['cycle_time_mean']:.2f} +- {s['cycle_time_std']:.2f} s"
         print(f"{side:>4}: fill {s['fill_factor_mean']:.3f} +- {s['fill_factor_std']:.3f}, "
               f"success {s['success_rate']:.2f}, cycle {cycle}")
     print(f"difference {r['fill_difference_points']:+.1f} points over {args.episodes} episodes "
-          f"(sensor delay {args.delay_s} s, noise {args.noise})")
+          f"(ROS {args.ros}, sensor delay {args.delay_s} s, noise {args.noise})")
     for name, s in r["transport_delay_s"].items():
         print(f"  {name}: stamp -> controller median {s['median'] * 1e3:.1f} ms, p99 {s['p99'] * 1e3:.1f} ms, "
               f"max {s['max'] * 1e3:.1f} ms")

@@ -57,6 +57,15 @@ LOOPBACK_CONFIG = ("<CycloneDDS><Domain><General><Interfaces><NetworkInterface a
 """A ``CYCLONEDDS_URI`` that keeps DDS on 127.0.0.1 (unicast discovery), for tests and benchmarks."""
 
 
+def loopback_environment(domain: int | None = None) -> dict[str, str]:
+    """A copy of ``os.environ`` for ROS 2 processes that stay on 127.0.0.1 in a domain of their own
+    (default: a random one in [100, 199], so two runs at once do not hear each other)."""
+    import random  # noqa: PLC0415
+
+    chosen = random.SystemRandom().randint(100, 199) if domain is None else domain
+    return {**os.environ, "CYCLONEDDS_URI": LOOPBACK_CONFIG, "ROS_DOMAIN_ID": str(chosen), "PYTHONUNBUFFERED": "1"}
+
+
 def domain_id(environ: Mapping[str, str] | None = None) -> int:
     """The DDS domain: ``ROS_DOMAIN_ID`` as ROS 2 reads it (unset or empty: 0).
 
