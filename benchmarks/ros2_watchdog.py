@@ -1,0 +1,102 @@
+"""Watchdog and estop latency of ``autoscoop ros2 controller`` over ROS 2 (Cyclone DDS on loopback).
+
+The ROS 2 twin of ``ros_watchdog.py``: the controller (``--policy heuristic``, default robot config)
+as its own process in a DDS domain of its own, a stand-in robot (``tests/ros2_probe.py``) in this one.
+The watchdog trials are spread over four faults of ``joint_states`` while the robot drives: silenced
+(publishing stops at a random phase of the control period; measured from the last message), frozen
+(one message re-published, stamp and all), stale (stamps 10 s old) and future-stamped (100 s ahead;
+these three measured from the first bad message). The requirement: a zero ``cmd_vel`` within
+``input_timeout_s`` + one control period (0.5 + 0.25 s) in every trial. Each estop trial measures
+``estop`` true -> zero ``cmd_vel`` (requirement: one control period).
+
+    .venv/bin/python benchmarks/ros2_watchdog.py --trials 100 --json benchmarks/results/deploy/ros2_watchdog.json
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+from autoscoop.deploy.robot_config import RobotNodeConfig
+from autoscoop.deploy.ros2.graph import loopback_environment
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))  # the stand-in robot is a test harness
+from ros2_probe import Ros2RobotProbe, stamp_trial
+from ros_probe import estop_trial, latency_summary, watchdog_trial
+
+FAULTS = ("silenced", "frozen", "stale", "future")
+
+
+def measure(trials: int, estop_trials: int, seed: int = 0, log: Path | None = None) -> dict:
+    """Run the trials against a fresh controller; latencies in seconds, per fault."""
+    config = RobotNodeConfig()
+    period, timeout = config.control.control_period_s, config.control.input_timeout_s
+    rng = np.random.default_rng(seed)
+    env = loopback_environment()
+    os.environ.update({key: env[key] for key in ("CYCLONEDDS_URI", "ROS_DOMAIN_ID")})  # the probe's participant too
+    out = open(log, "w") if log else subprocess.DEVNULL
+    controller = subprocess.Popen([sys.executable, "-m", "autoscoop.cli", "ros2", "controller", "--policy",
+                                   "heuristic"], env=env, stdout=out, stderr=subprocess.STDOUT)
+    latencies: dict[str, list[float]] = {fault: [] for fault in FAULTS}
+    try:
+        probe = Ros2RobotProbe(rate_hz=50.0)
+        probe.wait_for_controller(timeout_s=60)
+        for index in range(trials):
+            fault = FAULTS[index % len(FAULTS)]
+            if fault == "silenced":
+                latencies[fault].append(watchdog_trial(probe, rng.uniform(0.0, period)))
+            else:
+                time.sleep(rng.uniform(0.0, period))
+                latencies[fault].append(stamp_trial(probe, fault))
+        estop = [estop_trial(probe, rng.uniform(0.0, period)) for _ in range(estop_trials)]
+        probe.close()
+    finally:
+        controller.terminate()
+        controller.wait(timeout=15)
+    bound = timeout + period
+    every = [value for values in latencies.values() for value in values]
+    return {
+        "watchdog": {**latency_summary(every), "bound_s": bound, "within_bound": int(np.sum(np.asarray(every) <= bound)),
+                     "by_fault": {fault: {**latency_summary(values), "within_bound": int(np.sum(np.asarray(values) <= bound)),
+                                          "latencies_s": values} for fault, values in latencies.items() if values}},
+        "estop": {**latency_summary(estop), "bound_s": period,
+                  "within_bound": int(np.sum(np.asarray(estop) <= period)), "latencies_s": estop},
+        "control_period_s": period, "input_timeout_s": timeout, "sensor_rate_hz": 50.0, "middleware": "ROS 2 (Cyclone DDS)",
+        "note": "latency = first zero cmd_vel received by the probe - last joint_states sent (silenced), first bad "
+                "joint_states sent (frozen, stale, future) or estop sent; DDS transport both ways included",
+    }
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--trials", type=int, default=100, help="watchdog trials, spread over the four faults (default 100)")
+    parser.add_argument("--estop-trials", type=int, default=20, help="estop trials (default 20)")
+    parser.add_argument("--json", type=Path, help="write the results here")
+    parser.add_argument("--log", type=Path, help="write the controller's output here")
+    args = parser.parse_args()
+    started = time.monotonic()
+    result = measure(args.trials, args.estop_trials, log=args.log)
+    for name in ("watchdog", "estop"):
+        r = result[name]
+        print(f"{name}: {r['within_bound']}/{r['n']} within {r['bound_s']:.3f} s; median {r['median_s'] * 1e3:.1f} ms, "
+              f"p99 {r['p99_s'] * 1e3:.1f} ms, max {r['max_s'] * 1e3:.1f} ms")
+    for fault, r in result["watchdog"]["by_fault"].items():
+        print(f"  {fault}: {r['within_bound']}/{r['n']}, median {r['median_s'] * 1e3:.1f} ms, max {r['max_s'] * 1e3:.1f} ms")
+    print(f"({time.monotonic() - started:.0f} s)")
+    if args.json:
+        args.json.parent.mkdir(parents=True, exist_ok=True)
+        args.json.write_text(json.dumps(result, indent=2) + "\n")
+        print(f"wrote {args.json}")
+    ok = all(result[n]["within_bound"] == result[n]["n"] for n in ("watchdog", "estop"))
+    return 0 if ok else 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())

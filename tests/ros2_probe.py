@@ -1,0 +1,146 @@
+"""A stand-in robot on the controller's ROS 2 topics, for tests and benchmarks of ``autoscoop ros2 controller``
+(test-only: not shipped in the package).
+
+:class:`Ros2RobotProbe` offers what ``ros_probe.RobotProbe`` offers on ROS 1 (sensors at a fixed rate,
+each topic stoppable or replaced by made-up messages, every command timestamped on arrival), so the
+latency trials of ``ros_probe`` (``watchdog_trial``, ``estop_trial``) run on ROS 2 unchanged;
+:func:`stamp_trial` is ROS 2's (stamps are ``builtin_interfaces/Time``). Run it with the environment of
+:func:`autoscoop.deploy.ros2.graph.loopback_environment` and the controller in the same domain.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import threading
+import time
+from collections.abc import Callable
+from typing import Any
+
+from ros_probe import Received, start_moving
+
+from autoscoop.deploy.robot_config import TopicsSection
+from autoscoop.deploy.ros2.graph import COMMANDS, LATCHED, TOPIC_QOS, Ros2Node
+from autoscoop.deploy.ros2.messages import Bool, Float64, Time, Twist
+from autoscoop.deploy.ros2.sim_node import sensor_messages
+from autoscoop.deploy.sim_bridge import SensorReadings
+
+SENSOR_TOPICS = ("joint_states", "odom", "pile_range", "bucket_torque", "lift_torque")
+STAMP_FAULTS = {"frozen": None, "stale": -10.0, "future": 100.0}
+"""Stamp faults of :func:`stamp_trial`: the shift of each new stamp, s (``frozen``: one message re-published)."""
+
+
+class Ros2RobotProbe:
+    """Publishes the robot's sensors at ``rate_hz`` on ROS 2 and records the controller's commands.
+
+    Args:
+        rate_hz: sensor publication rate.
+        topics: topic names (the controller's defaults).
+        namespace: the namespace of the topics.
+    """
+
+    msg = {"Bool": Bool, "Float64": Float64, "Twist": Twist}
+
+    def __init__(self, rate_hz: float = 50.0, topics: TopicsSection | None = None, namespace: str = "/") -> None:
+        self.node = node = Ros2Node("robot_probe", namespace=namespace)
+        topics = topics or TopicsSection()
+        self.period_s = 1.0 / rate_hz
+        self.readings = SensorReadings(0.0, ("lift", "tilt"), (0.23, 0.0), 0.0, 0.3, -1.0, -20.0, 0.0,
+                                       (0.0, 0.0, 0.13), (1.0, 0.0, 0.0, 0.0))
+        self.enabled = {name: True for name in SENSOR_TOPICS}
+        self.last_published: dict[str, float] = {}
+        self.custom: dict[str, Callable[[], Any]] = {}
+        """Per topic, a function that returns the next message to publish instead of the normal one."""
+        self.received: list[Received] = []
+        self.errors: list[str] = []
+        self._lock = threading.Lock()
+        self._stop = threading.Event()
+        self.publishers = {name: node.publisher(getattr(topics, name), type(msg), TOPIC_QOS[name])
+                           for name, msg in sensor_messages(self.readings, 1.0) if name in SENSOR_TOPICS}
+        self.publishers["estop"] = node.publisher(topics.estop, Bool, LATCHED)
+        self.publishers["scoop"] = node.publisher(topics.scoop, Bool, COMMANDS)
+        node.subscription(topics.cmd_vel, Twist, COMMANDS, self._record("cmd_vel", lambda m: m.linear.x))
+        node.subscription(topics.lift_command, Float64, COMMANDS, self._record("lift", lambda m: m.data))
+        node.subscription(topics.tilt_command, Float64, COMMANDS, self._record("tilt", lambda m: m.data))
+        self._thread = threading.Thread(target=self._run, name="robot-probe", daemon=True)
+        self._thread.start()
+
+    def normal_message(self, topic: str) -> Any:
+        """The message ``topic`` carries now, freshly stamped on the ROS 2 clock."""
+        return dict(sensor_messages(self.readings, time.time()))[topic]
+
+    def _run(self) -> None:
+        tick = time.monotonic()
+        while not self._stop.is_set():
+            for topic in SENSOR_TOPICS:
+                if not self.enabled[topic]:
+                    continue
+                make = self.custom.get(topic)
+                self.publishers[topic].write(make() if make else self.normal_message(topic))
+                self.last_published[topic] = time.monotonic()
+            tick += self.period_s
+            time.sleep(max(0.0, tick - time.monotonic()))
+
+    def publish(self, topic: str, message: Any) -> float:
+        """Publish one message on ``estop``, ``scoop`` or a sensor topic; the monotonic time it was sent."""
+        self.publishers[topic].write(message)
+        return time.monotonic()
+
+    def wait_for_controller(self, timeout_s: float = 30.0) -> None:
+        """Wait until the controller reads every topic the probe publishes."""
+        deadline = time.monotonic() + timeout_s
+        for writer in self.publishers.values():
+            if not self.node.wait_for_subscriber(writer, max(0.0, deadline - time.monotonic())):
+                raise TimeoutError("the controller did not connect to the probe's topics")
+        time.sleep(0.2)  # and the probe to its commands
+
+    def _record(self, topic: str, value: Callable[[Any], float]) -> Callable[[Any], None]:
+        def callback(msg: Any) -> None:
+            now = time.monotonic()
+            with self._lock:
+                self.received.append(Received(now, topic, float(value(msg))))
+        return callback
+
+    def commands(self, topic: str, since: float = -math.inf) -> list[Received]:
+        """Commands received on ``cmd_vel``, ``lift`` or ``tilt`` at or after ``since``."""
+        with self._lock:
+            return [r for r in self.received if r.topic == topic and r.time_s >= since]
+
+    def wait_for_command(self, topic: str, predicate: Callable[[float], bool], since: float,
+                         timeout_s: float = 5.0) -> Received | None:
+        """The first command on ``topic`` after ``since`` whose value satisfies ``predicate`` (None on timeout)."""
+        deadline = time.monotonic() + timeout_s
+        while time.monotonic() < deadline:
+            for r in self.commands(topic, since):
+                if predicate(r.value):
+                    return r
+            time.sleep(0.002)
+        return None
+
+    def close(self) -> None:
+        """Stop publishing and leave the domain."""
+        self._stop.set()
+        self._thread.join(timeout=2)
+        self.node.close()
+
+
+def stamp_trial(probe: Ros2RobotProbe, kind: str, timeout_s: float = 2.0) -> float:
+    """Give ``joint_states`` bad stamps (:data:`STAMP_FAULTS`) while the robot drives; seconds from the first
+    bad message to a zero ``cmd_vel`` (``inf`` when none came within ``timeout_s``). Good stamps again afterwards."""
+    start_moving(probe)
+    frozen = probe.normal_message("joint_states")
+    shift = STAMP_FAULTS[kind]
+    t0 = time.monotonic()
+
+    def make() -> Any:
+        if shift is None:
+            return frozen
+        msg = probe.normal_message("joint_states")
+        return dataclasses.replace(msg, header=dataclasses.replace(
+            msg.header, stamp=Time.from_seconds(msg.header.stamp.to_seconds() + shift)))
+
+    probe.custom["joint_states"] = make
+    zero = probe.wait_for_command("cmd_vel", lambda v: v == 0.0, since=t0, timeout_s=timeout_s)
+    probe.custom.pop("joint_states")
+    time.sleep(0.3)  # fresh again
+    return math.inf if zero is None else zero.time_s - t0
