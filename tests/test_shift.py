@@ -150,6 +150,7 @@ def test_the_toe_ignores_a_stray_particle_and_what_lies_beside_the_path():
     expected = 0.3 - RADIUS - 2.5 * RADIUS / np.tan(np.radians(32.0))
     assert toe == pytest.approx(expected)
     assert toe_x_m(positions, RADIUS, everything, 32.0, path_half_width_m=1.0) < expected
+    assert np.isnan(toe_x_m(beside, RADIUS, np.ones(2, bool), 32.0, path_half_width_m=0.23)), "no pile on the path"
 
 
 # ------------------------------------------------------------------ the scene and the hopper

@@ -371,8 +371,10 @@ class ShiftConfig(ConfigModel):
     """
 
     section = "shift"
-    pile_particles: int = setting(360, "-", "particles in the shift's pile (360 of 0.3 kg: about 15 full scoops of "
+    pile_particles: int = setting(399, "-", "particles in the shift's pile (399 of 0.3 kg, 120 kg: 17 full scoops of "
                                   "the rated load); its slope and particles are pile.*", 1, 400)
+    pile_across: int = setting(7, "-", "particles per row across the shift's pile (7: 0.48 m, the bucket's width; the "
+                               "loader cannot steer aside to reach more)", 1, 20)
     pile_layers: int = setting(3, "-", "layers of the shift's pile (3: the single scoop's pile height, the pile "
                                "longer instead)", 1, 20)
     haul_distance_m: float = setting(0.6, "m", "from the pile's toe back to the hopper's centre, along the loader's "

@@ -29,15 +29,16 @@ class ShiftScoopEnv(ScoopEnv):
 
 def shift_world_config(config: ScoopConfig) -> ScoopConfig:
     """The config a shift runs in: ``config`` with the shift's pile (``shift.pile_particles`` in ``shift.pile_layers``
-    layers) in ``pile.n_particles`` and ``pile.max_layers``.
+    layers of rows ``shift.pile_across`` wide) in ``pile.n_particles``, ``pile.max_layers`` and ``pile.across``.
 
     Raises:
         ValueError: the shift's settings cannot work (:func:`autoscoop.core.shift_checks.check_shift_config`), naming
             the key.
     """
     check_shift_config(config)
-    return config.replace(pile=config.pile.replace(n_particles=config.shift.pile_particles,
-                                                   max_layers=config.shift.pile_layers))
+    shift = config.shift
+    return config.replace(pile=config.pile.replace(n_particles=shift.pile_particles, max_layers=shift.pile_layers,
+                                                   across=shift.pile_across))
 
 
 def make_shift_env(config: ScoopConfig) -> gym.Env:

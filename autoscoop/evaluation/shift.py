@@ -56,7 +56,8 @@ def run_shift(policy: Policy, config: ScoopConfig, cycles: int, seed: int = 0, p
     Args:
         policy: the scoop controller.
         config: the config (``shift.*`` for the pile and the hopper); the policy's state frame is laid over it.
-        cycles: loading cycles to run.
+        cycles: loading cycles to run; fewer when no pile is left on the loader's path (the last row's
+            ``pile_exhausted``) or the simulation diverged.
         seed: the shift's seed: the pile's variant and each scoop's episode seed.
         progress: show a progress bar.
         label: the progress bar's name (default ``shift POLICY``).
@@ -95,6 +96,7 @@ def run_shift(policy: Policy, config: ScoopConfig, cycles: int, seed: int = 0, p
                 if not timed_out or timed_out[-1] != PHYSICS_ERROR:
                     steered = sim.align_with_pile()
             account = sim.account()
+            toe_x = sim.toe_x_m()
             cycle_s = float(sim.data.time) - start_s
             clock_s += cycle_s
             delivered = int(sim.delivered.sum()) - delivered_before
@@ -124,7 +126,8 @@ def run_shift(policy: Policy, config: ScoopConfig, cycles: int, seed: int = 0, p
                 "shift_time_s": clock_s,
                 "particles": account.counts(),
                 "conserved": account.balanced(),
-                "toe_retreat_m": sim.toe_shift_m + sim.toe_x_m(),
+                "toe_retreat_m": sim.toe_shift_m + toe_x,
+                "pile_exhausted": not math.isfinite(toe_x),
                 "profile_x_m": [float(x) + sim.toe_shift_m for x in xs],
                 "profile_height_m": [float(h) for h in heights],
             }
@@ -132,7 +135,7 @@ def run_shift(policy: Policy, config: ScoopConfig, cycles: int, seed: int = 0, p
             if after_cycle is not None:
                 after_cycle(row)
             bar.set_postfix(fill=f"{outcome.fill_factor:.2f}", delivered=f"{sum(r['mass_delivered_kg'] for r in rows):.1f}kg")
-            if row["physics_error"]:
+            if row["physics_error"] or row["pile_exhausted"]:
                 break
     finally:
         sim.remove_substep_observer(meter)
@@ -180,7 +183,7 @@ def shift_totals(rows: list[dict[str, Any]]) -> dict[str, Any]:
         ``spilled_kg`` (off the pile, bucket and hopper at the end) and ``spillage_share`` (of the mass
         scooped); ``failed_scoop_share`` (scoops that did not succeed); ``wheel_slip`` (over the whole
         shift); ``fill_first5``, ``fill_last5`` and ``fill_last5_over_first5``; ``conserved`` (every cycle
-        accounted for every particle).
+        accounted for every particle); ``pile_exhausted`` (the shift ended early: no pile left on the path).
     """
     if not rows:
         return {"cycles": 0}
@@ -208,6 +211,7 @@ def shift_totals(rows: list[dict[str, Any]]) -> dict[str, Any]:
         "fill_last5": last,
         "fill_last5_over_first5": last / first if first > 0 else math.nan,
         "conserved": all(r["conserved"] for r in rows),
+        "pile_exhausted": bool(rows[-1]["pile_exhausted"]),
         "physics_errors": sum(bool(r["physics_error"]) for r in rows),
     }
 
@@ -225,6 +229,7 @@ def shift_conditions(config: ScoopConfig) -> dict[str, Any]:
         "pile_particles": pile.n_particles,
         "pile_mass_kg": pile.n_particles * pile.particle_mass_kg,
         "pile_angle_deg": pile.angle_deg,
+        "pile_width_m": 2 * pile.radius_m * pile.across,
         "state": "loose (a pile of free particles)",
         "operation": "I-cycle loading: scoop, back out, drive to the hopper spotted between loader and pile, dump, "
                      "back off, return",

@@ -22,6 +22,7 @@ COLOURS = ("#C44E52", "#4C72B0", "#55A868", "#8172B3", "#937860", "#DA8BC3")
 PROFILE_EVERY = 5
 """The pile's profile is drawn after the first cycle and every this many cycles."""
 TOTAL_COLUMNS = (
+    ("cycles", "cycles", 1),
     ("delivered_t_per_h", "delivered (t/h)", 4),
     ("energy_kj_per_t", "energy (kJ/t)", 1),
     ("delivered_kg", "delivered (kg)", 1),
@@ -83,7 +84,8 @@ def summarize_totals(shifts: Sequence[dict[str, Any]]) -> dict[str, Any]:
     out["fill_last5_over_first5"] = (out["fill_last5_mean"] / out["fill_first5_mean"]
                                      if out["fill_first5_mean"] > 0 else math.nan)
     out["conserved"] = all(s["totals"].get("conserved", False) for s in shifts)
-    out["completed_all_cycles"] = all(not s["totals"].get("physics_errors") for s in shifts)
+    out["completed_all_cycles"] = all(not s["totals"].get("physics_errors") and not s["totals"].get("pile_exhausted")
+                                      for s in shifts)
     return out
 
 
@@ -124,7 +126,8 @@ def conditions_text(conditions: dict[str, Any]) -> str:
     return "\n".join([
         f"- material: {c['material']}; solid density {c['particle_density_kg_m3']:.0f} kg/m³, loose "
         f"(free particles)",
-        f"- pile: {c['pile_particles']} particles, {c['pile_mass_kg']:g} kg, face slope {c['pile_angle_deg']:g}°",
+        f"- pile: {c['pile_particles']} particles, {c['pile_mass_kg']:g} kg, {c['pile_width_m']:.2f} m wide, face slope "
+        f"{c['pile_angle_deg']:g}°",
         f"- operation: {c['operation']}",
         f"- haul distance: {c['haul_distance_m']:g} m from the pile's toe to the hopper's centre; top speed "
         f"{c['max_speed_mps']:g} m/s",
