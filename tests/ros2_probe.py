@@ -4,7 +4,8 @@
 :class:`Ros2RobotProbe` offers what ``ros_probe.RobotProbe`` offers on ROS 1 (sensors at a fixed rate,
 each topic stoppable or replaced by made-up messages, every command timestamped on arrival), so the
 latency trials of ``ros_probe`` (``watchdog_trial``, ``estop_trial``) run on ROS 2 unchanged;
-:func:`stamp_trial` is ROS 2's (stamps are ``builtin_interfaces/Time``). Run it with the environment of
+:func:`stamp_trial` is ROS 2's (stamps are ``builtin_interfaces/Time``). :class:`Ros2FaultRelay` is
+``ros_probe.FaultRelay`` on ROS 2 (``benchmarks/ros2_soak.py``). Run them with the environment of
 :func:`autoscoop.deploy.ros2.graph.loopback_environment` and the controller in the same domain.
 """
 
@@ -17,7 +18,7 @@ import time
 from collections.abc import Callable
 from typing import Any
 
-from ros_probe import Received, start_moving
+from ros_probe import FaultRelay, Received, start_moving
 
 from autoscoop.deploy.robot_config import TopicsSection
 from autoscoop.deploy.ros2.graph import COMMANDS, LATCHED, TOPIC_QOS, Ros2Node
@@ -135,12 +136,78 @@ def stamp_trial(probe: Ros2RobotProbe, kind: str, timeout_s: float = 2.0) -> flo
     def make() -> Any:
         if shift is None:
             return frozen
-        msg = probe.normal_message("joint_states")
-        return dataclasses.replace(msg, header=dataclasses.replace(
-            msg.header, stamp=Time.from_seconds(msg.header.stamp.to_seconds() + shift)))
+        return shifted(probe.normal_message("joint_states"), shift)
 
     probe.custom["joint_states"] = make
     zero = probe.wait_for_command("cmd_vel", lambda v: v == 0.0, since=t0, timeout_s=timeout_s)
     probe.custom.pop("joint_states")
     time.sleep(0.3)  # fresh again
     return math.inf if zero is None else zero.time_s - t0
+
+
+def shifted(msg: Any, seconds: float) -> Any:
+    """A copy of a stamped ROS 2 message with its stamp moved by ``seconds``."""
+    return dataclasses.replace(msg, header=dataclasses.replace(
+        msg.header, stamp=Time.from_seconds(msg.header.stamp.to_seconds() + seconds)))
+
+
+class _Writer:
+    """A DDS writer with rospy's ``publish``, for :class:`FaultRelay`'s code."""
+
+    def __init__(self, writer: Any) -> None:
+        self.writer = writer
+
+    def publish(self, message: Any) -> None:
+        self.writer.write(message)
+
+
+class Ros2FaultRelay(FaultRelay):
+    """Relays ``{source}/TOPIC`` to ``TOPIC`` for each sensor topic on ROS 2; :meth:`inject` breaks one for a while.
+
+    Args:
+        source: namespace the simulator's sensor topics are remapped into (``joint_states:=sim/joint_states``).
+        topics: the controller's topic names.
+        seed: for the burst's random copies.
+    """
+
+    def __init__(self, source: str = "sim", topics: TopicsSection | None = None, seed: int = 0) -> None:
+        import numpy as np
+
+        self.node = node = Ros2Node("autoscoop_fault_relay")
+        self.bool = Bool
+        self.topics = topics = topics or TopicsSection()
+        self.rng = np.random.default_rng(seed)
+        self.lock = threading.Lock()
+        self.fault = None
+        self.last: dict[str, Any] = {}
+        self.last_sent: dict[str, float] = {}
+        self.relayed = 0
+        kinds = dict(sensor_messages(SensorReadings(0.0, ("lift", "tilt"), (0.0, 0.0), 0.0, 0.0, 0.0, 0.0, 0.0,
+                                                    (0.0, 0.0, 0.0), (1.0, 0.0, 0.0, 0.0)), 1.0))
+        self.writers = {name: node.publisher(getattr(topics, name), type(kinds[name]), TOPIC_QOS[name])
+                        for name in SENSOR_TOPICS}
+        self.writers["estop"] = node.publisher(topics.estop, Bool, LATCHED)
+        self.publishers = {name: _Writer(writer) for name, writer in self.writers.items()}
+        self.readers = [node.subscription(f"{source}/{getattr(topics, name)}", type(kinds[name]), TOPIC_QOS[name],
+                                          lambda msg, name=name: self._relay(name, msg)) for name in SENSOR_TOPICS]
+
+    def shifted(self, msg: Any, seconds: float) -> Any:
+        return shifted(msg, seconds)
+
+    def stamp_age(self, msg: Any) -> float:
+        return time.time() - msg.header.stamp.to_seconds()
+
+    def wait_connected(self, timeout_s: float = 60.0) -> None:
+        """Wait until the simulator publishes to the relay and the controller listens to it."""
+        deadline = time.monotonic() + timeout_s
+        for writer in self.writers.values():
+            if not self.node.wait_for_subscriber(writer, max(0.0, deadline - time.monotonic())):
+                raise TimeoutError("the controller does not listen to the relay")
+        while len(self.last) < len(SENSOR_TOPICS):
+            if time.monotonic() > deadline:
+                raise TimeoutError("the simulator does not publish to the relay")
+            time.sleep(0.05)
+
+    def close(self) -> None:
+        """Stop relaying."""
+        self.node.close()

@@ -337,6 +337,16 @@ class FaultRelay:
                 self.last[topic], self.last_sent[topic] = msg, time.monotonic()
                 self.relayed += 1
 
+    def shifted(self, msg: Any, seconds: float) -> Any:
+        """A copy of a stamped message with its stamp moved by ``seconds``."""
+        out = copy.deepcopy(msg)
+        out.header.stamp += self.rospy.Duration.from_sec(seconds)
+        return out
+
+    def stamp_age(self, msg: Any) -> float:
+        """How old a stamped message's reading is now, by the ROS clock, s."""
+        return self.rospy.get_time() - msg.header.stamp.to_sec()
+
     def _faulty(self, fault: _Fault, topic: str, msg: Any) -> list[tuple[Any, bool]]:
         """What goes out instead of ``msg``: (message, whether it is a faulty one)."""
         kind = fault.kind
@@ -345,9 +355,7 @@ class FaultRelay:
         if kind == "frozen":
             return [(self.last[topic], False)]  # the same reading: the input goes stale at its stamp
         if kind in ("old", "future"):
-            out = copy.deepcopy(msg)
-            out.header.stamp += self.rospy.Duration.from_sec(-10.0 if kind == "old" else 100.0)
-            return [(out, True)]
+            return [(self.shifted(msg, -10.0 if kind == "old" else 100.0), True)]
         if kind == "out_of_order":
             previous, fault.previous = fault.previous or self.last[topic], msg
             return [(msg, False), (previous, True)]
@@ -375,7 +383,7 @@ class FaultRelay:
             if kind == "silence":
                 fault.t0 = self.last_sent[topic]
             elif kind == "frozen":
-                fault.t0 = started - (self.rospy.get_time() - self.last[topic].header.stamp.to_sec())
+                fault.t0 = started - self.stamp_age(self.last[topic])
             self.fault = fault
         if kind == "estop":
             self.publishers["estop"].publish(self.bool(True))
