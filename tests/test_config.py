@@ -21,8 +21,8 @@ def test_required_keys_exist_with_paper_defaults():
 
 @pytest.mark.parametrize("key, value, fragment", [
     ("pile.angle_deg", "80", "pile.angle_deg = 80: Input should be less than or equal to 60 (allowed [15.0, 60.0] deg)"),
-    ("pile.n_particles", "0", "pile.n_particles = 0: Input should be greater than or equal to 1 (allowed [1, 400])"),
-    ("pile.n_particles", "2.5", "pile.n_particles = 2.5: Input should be a valid integer (allowed [1, 400])"),
+    ("pile.n_particles", "0", "pile.n_particles = 0: Input should be greater than or equal to 1 (allowed [1, 1000])"),
+    ("pile.n_particles", "2.5", "pile.n_particles = 2.5: Input should be a valid integer (allowed [1, 1000])"),
     ("pile.radius_m", "nan", "pile.radius_m = 'nan': Input should be a valid number (allowed [0.01, 0.08] m)"),
     ("pile.radius_m", float("nan"), "pile.radius_m = nan: Input should be a finite number (allowed [0.01, 0.08] m)"),
     ("robot.start_gap_m", "-1", "robot.start_gap_m = -1: Input should be greater than or equal to 0"),
@@ -113,7 +113,7 @@ def test_ints_become_floats_and_the_checks_are_strict():
     assert c.pile.angle_mix_deg == (25.0, 40.0) and all(type(a) is float for a in c.pile.angle_mix_deg)
     assert type(c.pile.n_particles) is int
     for key, value, fragment in [("pile.angle_deg", True, "Input should be a valid number (allowed [15.0, 60.0] deg)"),
-                                 ("pile.n_particles", 3.0, "Input should be a valid integer (allowed [1, 400])"),
+                                 ("pile.n_particles", 3.0, "Input should be a valid integer (allowed [1, 1000])"),
                                  ("pile.rolling", 1, "Input should be a valid boolean"),
                                  ("pile.angle_mix_deg", 30, "Input should be a valid tuple (allowed [15.0, 60.0] deg)")]:
         with pytest.raises(ConfigError, match=re.escape(f"{key} = {value!r}: {fragment}")):
@@ -133,7 +133,7 @@ def test_sections_built_directly_or_replaced_are_checked_too():
     with pytest.raises(ConfigError, match=re.escape("pile.angle_deg = 80: Input should be less than or equal to 60")):
         PileConfig(angle_deg=80)
     with pytest.raises(ConfigError, match=re.escape("pile.n_particles = 0: Input should be greater than or equal to 1 "
-                                                   "(allowed [1, 400])")):
+                                                   "(allowed [1, 1000])")):
         ScoopConfig(pile={"n_particles": 0})
     with pytest.raises(ConfigError, match=r"env\.timestep_s"):
         c.replace(env=c.env.replace(timestep_s=0.03))

@@ -251,7 +251,7 @@ class PileConfig(ConfigModel):
     angle_mix_deg: PileAngles = setting(
         (), "deg", "if given, each pile variant takes one of these face slopes in turn "
         "(training on a mix of piles); empty: always angle_deg", *PILE_ANGLE_RANGE_DEG)
-    n_particles: int = setting(72, "-", "number of particles", 1, 400)
+    n_particles: int = setting(72, "-", "number of particles", 1, 1000)
     radius_m: float = setting(0.034, "m", "particle radius", 0.01, 0.08)
     particle_mass_kg: float = setting(0.3, "kg", "mass of one particle", 0.01, 5.0)
     friction: float = setting(1.0, "-", "sliding friction of particle contacts", 0.0, 2.0)
@@ -371,8 +371,9 @@ class ShiftConfig(ConfigModel):
     """
 
     section = "shift"
-    pile_particles: int = setting(399, "-", "particles in the shift's pile (399 of 0.3 kg, 120 kg: 17 full scoops of "
-                                  "the rated load); its slope and particles are pile.*", 1, 400)
+    pile_particles: int = setting(630, "-", "particles in the shift's pile (630 of 0.3 kg, 189 kg: 27 full scoops of "
+                                  "the rated load, so 15 cycles do not run out of pile); its slope and particles are "
+                                  "pile.*", 1, 1000)
     pile_across: int = setting(7, "-", "particles per row across the shift's pile (7: 0.48 m, the bucket's width; the "
                                "loader cannot steer aside to reach more)", 1, 20)
     pile_layers: int = setting(3, "-", "layers of the shift's pile (3: the single scoop's pile height, the pile "
