@@ -14,8 +14,6 @@ these three measured from the first bad message). The requirement: a zero ``cmd_
 
 from __future__ import annotations
 
-import argparse
-import json
 import os
 import subprocess
 import sys
@@ -28,6 +26,7 @@ from autoscoop.deploy.robot_config import RobotNodeConfig
 from autoscoop.deploy.ros2.graph import loopback_environment
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))  # the stand-in robot is a test harness
+import ros_watchdog
 from ros2_probe import Ros2RobotProbe, stamp_trial
 from ros_probe import estop_trial, latency_summary, watchdog_trial
 
@@ -75,27 +74,7 @@ def measure(trials: int, estop_trials: int, seed: int = 0, log: Path | None = No
 
 
 def main() -> int:
-    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--trials", type=int, default=100, help="watchdog trials, spread over the four faults (default 100)")
-    parser.add_argument("--estop-trials", type=int, default=20, help="estop trials (default 20)")
-    parser.add_argument("--json", type=Path, help="write the results here")
-    parser.add_argument("--log", type=Path, help="write the controller's output here")
-    args = parser.parse_args()
-    started = time.monotonic()
-    result = measure(args.trials, args.estop_trials, log=args.log)
-    for name in ("watchdog", "estop"):
-        r = result[name]
-        print(f"{name}: {r['within_bound']}/{r['n']} within {r['bound_s']:.3f} s; median {r['median_s'] * 1e3:.1f} ms, "
-              f"p99 {r['p99_s'] * 1e3:.1f} ms, max {r['max_s'] * 1e3:.1f} ms")
-    for fault, r in result["watchdog"]["by_fault"].items():
-        print(f"  {fault}: {r['within_bound']}/{r['n']}, median {r['median_s'] * 1e3:.1f} ms, max {r['max_s'] * 1e3:.1f} ms")
-    print(f"({time.monotonic() - started:.0f} s)")
-    if args.json:
-        args.json.parent.mkdir(parents=True, exist_ok=True)
-        args.json.write_text(json.dumps(result, indent=2) + "\n")
-        print(f"wrote {args.json}")
-    ok = all(result[n]["within_bound"] == result[n]["n"] for n in ("watchdog", "estop"))
-    return 0 if ok else 1
+    return ros_watchdog.main(measure, __doc__)
 
 
 if __name__ == "__main__":

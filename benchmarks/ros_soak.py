@@ -73,10 +73,10 @@ def relay_main(seed: int) -> int:
 
 
 class RelayProcess:
-    """The relay in its own process: :meth:`inject` sends it a fault and waits for its report."""
+    """The relay in its own process (``script --relay``): :meth:`inject` sends it a fault and waits for its report."""
 
-    def __init__(self, env: dict, seed: int, log: Any) -> None:
-        self.process = subprocess.Popen([sys.executable, __file__, "--relay", "--seed", str(seed)], env=env,
+    def __init__(self, env: dict, seed: int, log: Any, script: str = __file__) -> None:
+        self.process = subprocess.Popen([sys.executable, script, "--relay", "--seed", str(seed)], env=env,
                                         stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=log, text=True)
         self.lines: queue.Queue = queue.Queue()
         threading.Thread(target=self._read, daemon=True).start()
@@ -180,7 +180,7 @@ def rss_kb(pid: int) -> int:
 
 
 # ==================================================================== the soak
-def _draw(rng: np.random.Generator) -> tuple[str, str, float]:
+def draw_fault(rng: np.random.Generator) -> tuple[str, str, float]:
     kinds = list(WEIGHTS)
     p = np.array([WEIGHTS[k] for k in kinds], dtype=float)
     kind = str(rng.choice(kinds, p=p / p.sum()))
@@ -221,7 +221,7 @@ def _stop_for(fault: dict, status: list[tuple[float, str]]) -> tuple[float | Non
     return stopped, None
 
 
-def _moving_while_stopped(speeds: list[tuple[float, float]], status: list[tuple[float, str]]) -> int:
+def moving_while_stopped(speeds: list[tuple[float, float]], status: list[tuple[float, str]]) -> int:
     """Non-zero speeds received while the status said stopped, away from any status change."""
     times = [t for t, _ in status]
     count = 0
@@ -310,7 +310,7 @@ def soak(minutes: float, seed: int = 0, policy: str = "heuristic", work: Path | 
             while time.monotonic() < deadline:
                 if not listener.wait_running(for_s=float(rng.uniform(0.5, 2.0)), timeout_s=30.0):
                     continue
-                kind, topic, duration = _draw(rng)
+                kind, topic, duration = draw_fault(rng)
                 if kind == "restart":
                     restarts += 1
                     relay, record = _restart(relay, listener, master.env, seed + restarts, logs["relay"])
@@ -343,7 +343,7 @@ def soak(minutes: float, seed: int = 0, policy: str = "heuristic", work: Path | 
     return {
         "minutes": elapsed / 60.0, "policy": policy, "seed": seed, "scoops": listener.scoops,
         "commands": {**counts, "total": sum(counts.values())}, "bad_commands": len(bad), "bad": bad[:20],
-        "moving_while_stopped": _moving_while_stopped(speeds, status),
+        "moving_while_stopped": moving_while_stopped(speeds, status),
         "faults": result, "stops": stopped, "stops_not_injected": len(unexplained),
         "stops_not_injected_reasons": unexplained[:20],
         "controller_rss_kb": {"start": start_kb, "end": end_kb, "growth_pct": 100.0 * (end_kb - start_kb) / start_kb,
@@ -362,7 +362,7 @@ def _ms(seconds: float | None) -> str:
     return "n/a" if seconds is None else f"{seconds * 1e3:.1f} ms"
 
 
-def _print(r: dict) -> None:
+def print_result(r: dict) -> None:
     f = r["faults"]
     print(f"{r['minutes']:.1f} min, {r['scoops']} scoops, {r['commands']['total']} commands "
           f"({r['commands']['cmd_vel']} cmd_vel); bad commands {r['bad_commands']}, moving while stopped "
@@ -379,8 +379,10 @@ def _print(r: dict) -> None:
     print(f"controller memory {m['start'] / 1024:.1f} MiB -> {m['end'] / 1024:.1f} MiB ({m['growth_pct']:+.2f} %)")
 
 
-def main() -> int:
-    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+def main(run_soak=soak, run_relay=relay_main, description: str = __doc__) -> int:
+    """The command line around ``run_soak(minutes, seed, policy, work)`` and, with ``--relay``, ``run_relay(seed)``
+    (this file's, or another middleware's with the same results); exit 0 when the soak met every bound."""
+    parser = argparse.ArgumentParser(description=description, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--minutes", type=float, default=10.0, help="how long to inject faults (default 10)")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--policy", default="heuristic", help="the controller's --policy (default heuristic)")
@@ -389,13 +391,13 @@ def main() -> int:
     parser.add_argument("--relay", action="store_true", help=argparse.SUPPRESS)
     args = parser.parse_args()
     if args.relay:
-        return relay_main(args.seed)
+        return run_relay(args.seed)
     if not (args.minutes > 0 and math.isfinite(args.minutes)):
         parser.error(f"--minutes must be a positive number, got {args.minutes}")
     if args.json:
         args.json.parent.mkdir(parents=True, exist_ok=True)
-    result = soak(args.minutes, args.seed, args.policy, args.work_dir)
-    _print(result)
+    result = run_soak(args.minutes, args.seed, args.policy, args.work_dir)
+    print_result(result)
     if args.json:
         args.json.write_text(json.dumps(result, indent=2) + "\n")
         print(f"wrote {args.json}")

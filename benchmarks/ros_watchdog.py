@@ -62,19 +62,23 @@ def measure(trials: int, estop_trials: int, seed: int = 0, log: Path | None = No
     }
 
 
-def main() -> int:
-    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+def main(measure_trials=measure, description: str = __doc__) -> int:
+    """The command line around ``measure_trials(trials, estop_trials, log=...)`` (this file's :func:`measure`, or
+    another middleware's with the same results); exit 0 when every trial met its bound."""
+    parser = argparse.ArgumentParser(description=description, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--trials", type=int, default=100, help="watchdog trials (default 100)")
     parser.add_argument("--estop-trials", type=int, default=20, help="estop trials (default 20)")
     parser.add_argument("--json", type=Path, help="write the results here")
     parser.add_argument("--log", type=Path, help="write the controller's output here")
     args = parser.parse_args()
     started = time.monotonic()
-    result = measure(args.trials, args.estop_trials, log=args.log)
+    result = measure_trials(args.trials, args.estop_trials, log=args.log)
     for name in ("watchdog", "estop"):
         r = result[name]
         print(f"{name}: {r['within_bound']}/{r['n']} within {r['bound_s']:.3f} s; median {r['median_s'] * 1e3:.1f} ms, "
               f"p99 {r['p99_s'] * 1e3:.1f} ms, max {r['max_s'] * 1e3:.1f} ms")
+    for fault, r in result["watchdog"].get("by_fault", {}).items():
+        print(f"  {fault}: {r['within_bound']}/{r['n']}, median {r['median_s'] * 1e3:.1f} ms, max {r['max_s'] * 1e3:.1f} ms")
     print(f"({time.monotonic() - started:.0f} s)")
     if args.json:
         args.json.parent.mkdir(parents=True, exist_ok=True)

@@ -18,7 +18,7 @@ import time
 from collections.abc import Callable
 from typing import Any
 
-from ros_probe import FaultRelay, Received, start_moving
+from ros_probe import FaultRelay, Received, RobotProbe, start_moving
 
 from autoscoop.deploy.robot_config import TopicsSection
 from autoscoop.deploy.ros2.graph import COMMANDS, LATCHED, TOPIC_QOS, Ros2Node
@@ -31,8 +31,19 @@ STAMP_FAULTS = {"frozen": None, "stale": -10.0, "future": 100.0}
 """Stamp faults of :func:`stamp_trial`: the shift of each new stamp, s (``frozen``: one message re-published)."""
 
 
-class Ros2RobotProbe:
-    """Publishes the robot's sensors at ``rate_hz`` on ROS 2 and records the controller's commands.
+class _Writer:
+    """A DDS writer with rospy's ``publish``, for the ROS 1 harness's code."""
+
+    def __init__(self, writer: Any) -> None:
+        self.writer = writer
+
+    def publish(self, message: Any) -> None:
+        self.writer.write(message)
+
+
+class Ros2RobotProbe(RobotProbe):
+    """``ros_probe.RobotProbe`` on ROS 2: publishes the robot's sensors at ``rate_hz`` and records the
+    controller's commands (``commands``, ``wait_for_command``, ``publish`` are RobotProbe's).
 
     Args:
         rate_hz: sensor publication rate.
@@ -42,7 +53,8 @@ class Ros2RobotProbe:
 
     msg = {"Bool": Bool, "Float64": Float64, "Twist": Twist}
 
-    def __init__(self, rate_hz: float = 50.0, topics: TopicsSection | None = None, namespace: str = "/") -> None:
+    def __init__(self, rate_hz: float = 50.0, topics: TopicsSection | None = None,
+                 namespace: str = "/") -> None:
         self.node = node = Ros2Node("robot_probe", namespace=namespace)
         topics = topics or TopicsSection()
         self.period_s = 1.0 / rate_hz
@@ -56,10 +68,11 @@ class Ros2RobotProbe:
         self.errors: list[str] = []
         self._lock = threading.Lock()
         self._stop = threading.Event()
-        self.publishers = {name: node.publisher(getattr(topics, name), type(msg), TOPIC_QOS[name])
-                           for name, msg in sensor_messages(self.readings, 1.0) if name in SENSOR_TOPICS}
-        self.publishers["estop"] = node.publisher(topics.estop, Bool, LATCHED)
-        self.publishers["scoop"] = node.publisher(topics.scoop, Bool, COMMANDS)
+        self.writers = {name: node.publisher(getattr(topics, name), type(msg), TOPIC_QOS[name])
+                        for name, msg in sensor_messages(self.readings, 1.0) if name in SENSOR_TOPICS}
+        self.writers["estop"] = node.publisher(topics.estop, Bool, LATCHED)
+        self.writers["scoop"] = node.publisher(topics.scoop, Bool, COMMANDS)
+        self.publishers = {name: _Writer(writer) for name, writer in self.writers.items()}
         node.subscription(topics.cmd_vel, Twist, COMMANDS, self._record("cmd_vel", lambda m: m.linear.x))
         node.subscription(topics.lift_command, Float64, COMMANDS, self._record("lift", lambda m: m.data))
         node.subscription(topics.tilt_command, Float64, COMMANDS, self._record("tilt", lambda m: m.data))
@@ -77,46 +90,18 @@ class Ros2RobotProbe:
                 if not self.enabled[topic]:
                     continue
                 make = self.custom.get(topic)
-                self.publishers[topic].write(make() if make else self.normal_message(topic))
+                self.writers[topic].write(make() if make else self.normal_message(topic))
                 self.last_published[topic] = time.monotonic()
             tick += self.period_s
             time.sleep(max(0.0, tick - time.monotonic()))
 
-    def publish(self, topic: str, message: Any) -> float:
-        """Publish one message on ``estop``, ``scoop`` or a sensor topic; the monotonic time it was sent."""
-        self.publishers[topic].write(message)
-        return time.monotonic()
-
     def wait_for_controller(self, timeout_s: float = 30.0) -> None:
         """Wait until the controller reads every topic the probe publishes."""
         deadline = time.monotonic() + timeout_s
-        for writer in self.publishers.values():
+        for writer in self.writers.values():
             if not self.node.wait_for_subscriber(writer, max(0.0, deadline - time.monotonic())):
                 raise TimeoutError("the controller did not connect to the probe's topics")
         time.sleep(0.2)  # and the probe to its commands
-
-    def _record(self, topic: str, value: Callable[[Any], float]) -> Callable[[Any], None]:
-        def callback(msg: Any) -> None:
-            now = time.monotonic()
-            with self._lock:
-                self.received.append(Received(now, topic, float(value(msg))))
-        return callback
-
-    def commands(self, topic: str, since: float = -math.inf) -> list[Received]:
-        """Commands received on ``cmd_vel``, ``lift`` or ``tilt`` at or after ``since``."""
-        with self._lock:
-            return [r for r in self.received if r.topic == topic and r.time_s >= since]
-
-    def wait_for_command(self, topic: str, predicate: Callable[[float], bool], since: float,
-                         timeout_s: float = 5.0) -> Received | None:
-        """The first command on ``topic`` after ``since`` whose value satisfies ``predicate`` (None on timeout)."""
-        deadline = time.monotonic() + timeout_s
-        while time.monotonic() < deadline:
-            for r in self.commands(topic, since):
-                if predicate(r.value):
-                    return r
-            time.sleep(0.002)
-        return None
 
     def close(self) -> None:
         """Stop publishing and leave the domain."""
@@ -149,16 +134,6 @@ def shifted(msg: Any, seconds: float) -> Any:
     """A copy of a stamped ROS 2 message with its stamp moved by ``seconds``."""
     return dataclasses.replace(msg, header=dataclasses.replace(
         msg.header, stamp=Time.from_seconds(msg.header.stamp.to_seconds() + seconds)))
-
-
-class _Writer:
-    """A DDS writer with rospy's ``publish``, for :class:`FaultRelay`'s code."""
-
-    def __init__(self, writer: Any) -> None:
-        self.writer = writer
-
-    def publish(self, message: Any) -> None:
-        self.writer.write(message)
 
 
 class Ros2FaultRelay(FaultRelay):

@@ -2,23 +2,21 @@
 
 Each message is stored as rospy serialised it, on a connection with its type's ROS 1 definition and
 MD5 sum (``rosbags``' ROS 1 type store), timed by the wall clock when written. The bag is written
-beside its final name and renamed into place when closed; ``rosbag``, ``rosbags`` and
-``autoscoop replay`` read it.
+beside its final name and renamed into place when closed (:class:`~autoscoop.deploy.bag_file.BagFile`);
+``rosbag``, ``rosbags`` and ``autoscoop replay`` read it.
 """
 
 from __future__ import annotations
 
 import io
-import threading
 import time
-from contextlib import ExitStack
 from pathlib import Path
 from typing import Any
 
-from autoscoop.core.safe_files import atomic_output
+from autoscoop.deploy.bag_file import BagFile
 
 
-class Ros1BagLog:
+class Ros1BagLog(BagFile):
     """rospy messages to a ROS 1 bag, from any thread; :meth:`close` completes it.
 
     Args:
@@ -29,16 +27,11 @@ class Ros1BagLog:
         from rosbags.rosbag1 import Writer  # noqa: PLC0415 - the ros2 extra brings rosbags
         from rosbags.typesys import Stores, get_typestore  # noqa: PLC0415
 
-        self.path = Path(path)
-        self._stack = ExitStack()
-        temporary = self._stack.enter_context(atomic_output(self.path))
-        self._writer = Writer(temporary)
-        self._writer.open()
-        self._typestore = get_typestore(Stores.ROS1_NOETIC)
-        self._connections: dict[str, Any] = {}
-        self._lock = threading.Lock()
-        self.count = 0
-        self.closed = False
+        super().__init__(path)
+        self.writer = Writer(self.temporary)
+        self.writer.open()
+        self.typestore = get_typestore(Stores.ROS1_NOETIC)
+        self.connections: dict[str, Any] = {}
 
     def write(self, topic: str, message: Any) -> None:
         """Append a rospy ``message`` on ``topic`` (resolved), now. Ignored once closed."""
@@ -47,20 +40,13 @@ class Ros1BagLog:
         message.serialize(buffer)
         package = type(message).__module__.split(".")[0]  # genpy classes live in e.g. sensor_msgs.msg._JointState
         name = type(message).__name__
-        with self._lock:
-            if self.closed:
-                return
-            if topic not in self._connections:
-                self._connections[topic] = self._writer.add_connection(topic, f"{package}/msg/{name}",
-                                                                       typestore=self._typestore)
-            self._writer.write(self._connections[topic], stamp, buffer.getvalue())
-            self.count += 1
 
-    def close(self) -> None:
-        """Finish the bag and move it into place (once)."""
-        with self._lock:
-            if self.closed:
-                return
-            self.closed = True
-            self._writer.close()
-        self._stack.close()
+        def add() -> None:
+            if topic not in self.connections:
+                self.connections[topic] = self.writer.add_connection(topic, f"{package}/msg/{name}",
+                                                                     typestore=self.typestore)
+            self.writer.write(self.connections[topic], stamp, buffer.getvalue())
+        self.append(add)
+
+    def finish(self) -> None:
+        self.writer.close()
