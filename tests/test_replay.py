@@ -11,6 +11,7 @@ import pytest
 
 pytest.importorskip("cyclonedds")
 pytest.importorskip("rosbags")
+pytest.importorskip("mcap")
 
 from rosbags.rosbag1 import Writer as Bag1Writer
 from rosbags.rosbag2 import StoragePlugin

@@ -16,6 +16,7 @@ import time
 import pytest
 
 pytest.importorskip("cyclonedds")
+pytest.importorskip("mcap_ros2")  # the recordings' checks; the ros2 extra brings both
 
 from autoscoop.agents.loading import load_policy
 from autoscoop.core.config import ConfigError, ScoopConfig

@@ -43,6 +43,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from autoscoop.deploy import replay  # noqa: PLC0415
+    from autoscoop.deploy.controller import payload_inputs  # noqa: PLC0415
 
     check_output_dir(args.out, "--out")
     if args.json:
@@ -50,7 +51,7 @@ def run(args: argparse.Namespace) -> int:
     core = build_controller(args)
     core.log = lambda level, text: None  # the verdicts are in the CSV, not one line per transition
     topics = core.config.topics
-    needed = ("joint_states", "odom", "pile_range", *replay.payload_inputs(core.config.payload), "scoop")
+    needed = ("joint_states", "odom", "pile_range", *payload_inputs(core.config.payload), "scoop")
     try:
         log = replay.read_log(args.log, topics, needed, args.namespace)
     except ImportError as error:

@@ -166,7 +166,7 @@ class Replay(ControllerLoop):
         self.commands.append(command)
 
     def shutting_down(self) -> bool:
-        return True
+        return True  # no live loop: :meth:`run` drives the core
 
     def log_info(self, text: str) -> None:
         pass
