@@ -94,6 +94,21 @@ def test_ros_domain_id_is_honoured_and_checked():
         node.close()
 
 
+def test_nodes_in_another_domain_are_not_heard():
+    talker, same, other = Ros2Node("talker"), Ros2Node("same"), Ros2Node("other", domain=DOMAIN + 1)
+    try:
+        writer = talker.publisher("chatter", Bool, COMMANDS)
+        readers = [node.subscription("chatter", Bool, COMMANDS) for node in (same, other)]
+        assert talker.wait_for_subscriber(writer, 10.0)
+        time.sleep(1.0)  # time for the other domain's reader to be found, were it visible
+        assert writer.get_publication_matched_status().current_count == 1
+        writer.write(Bool(True))
+        assert wait_for(lambda: take_all(readers[0], Bool), 2.0) and not take_all(readers[1], Bool)
+    finally:
+        for node in (talker, same, other):
+            node.close()
+
+
 def test_a_bad_domain_is_a_usage_error():
     run = subprocess.run([sys.executable, "-m", "autoscoop.cli", "ros2", "controller", "--policy", "heuristic"],
                          env=dict(os.environ, ROS_DOMAIN_ID="999"), capture_output=True, text=True, timeout=60)
