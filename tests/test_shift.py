@@ -17,7 +17,7 @@ from autoscoop.core.shift_script import PHASES, CarryDumpScript, Ranges, ScriptP
 from autoscoop.envs.shift import shift_world_config
 from autoscoop.evaluation.shift import run_shift
 from autoscoop.sim.scene import ScoopSim
-from autoscoop.sim.shift_sim import ShiftSim
+from autoscoop.sim.shift_sim import HELD_DAMPING_NS_M, REACH_BEHIND_TOE_M, ShiftSim
 
 RADIUS = 0.034
 SMALL_SHIFT = {"shift.pile_particles": 72, "shift.pile_layers": 3, "pile.variants": 1}
@@ -262,3 +262,14 @@ def test_the_shift_command_refuses_bad_input_naming_the_key_before_simulating(se
     assert main(["shift", "--policy", "heuristic", "--cycles", "1", "--set", setting]) == 2
     error = capsys.readouterr().err
     assert key in error and "Traceback" not in error
+
+
+def test_the_pile_out_of_the_scoops_reach_is_held_and_the_rest_moves_freely():
+    config = shift_world_config(ScoopConfig().with_overrides({"shift.pile_particles": 140, "pile.variants": 1}))
+    sim = ShiftSim(config)
+    sim.reset(np.random.default_rng(0))
+    x = sim.particle_positions[:, 0]
+    sliding = np.array([sim.model.dof_damping[sim.model.joint(f"particle_{i:03d}").dofadr[0]] for i in range(len(x))])
+    assert (x > REACH_BEHIND_TOE_M).any() and (x < REACH_BEHIND_TOE_M).any()
+    assert np.all(sliding[x > REACH_BEHIND_TOE_M] == HELD_DAMPING_NS_M)
+    assert np.all(sliding[x < REACH_BEHIND_TOE_M] == 0.0)
