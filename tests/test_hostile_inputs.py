@@ -671,6 +671,7 @@ SMALL_FILE_COMMANDS = {
     "config": ["config", "--config", "{file}"],
     "eval": ["eval", "--episodes", "1", "--config", "{file}"],
     "train": ["train", "--episodes", "1", "--config", "{file}", "--out", "{tmp}/run"],
+    "resume": ["train", "--resume", "{tmp}", "--no-progress"],
     "sweep": ["sweep", "--space", "{file}", "--episodes", "1", "--trials", "1", "--out", "{tmp}/sweep"],
     "ros-robot-yaml": ["ros", "controller", "--check", "--policy", "heuristic", "--config", "{file}"],
     "calibration": ["bench", "payload", "--calibration", "{file}", "--episodes", "1"],
@@ -694,9 +695,10 @@ launcher, not from the test process (a child's peak memory counts what it had wh
 def test_an_alias_bomb_of_under_1_kb_costs_little_memory_and_time(command, tmp_path) -> None:
     """The whole process, imports included: under 200 MB at its peak (about 110 MB measured) and a few
     seconds (under one second on an idle machine)."""
-    bomb = tmp_path / "bomb.yaml"
+    bomb = tmp_path / ("hyperparams.yaml" if command == "resume" else "bomb.yaml")
     bomb.write_text(_alias_bomb())
     assert bomb.stat().st_size <= 1024
+    (tmp_path / "run.json").write_text(json.dumps({"algo": "ddpg", "status": "running", "episodes": 2}))
     argv = [arg.format(file=bomb, tmp=tmp_path) for arg in SMALL_FILE_COMMANDS[command]]
     done = subprocess.run([sys.executable, "-c", MEASURED_RUN, sys.executable, "-m", "autoscoop.cli", *argv],
                           capture_output=True, text=True, cwd=tmp_path, timeout=120)

@@ -9,7 +9,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from autoscoop.commands import options
-from autoscoop.core.config import overrides_from_yaml, parse_set_args
+from autoscoop.core.config import overrides_from_yaml, parse_set_args, read_yaml_file
 from autoscoop.envs import worlds_help
 from autoscoop.training.recipes import DEFAULT_EPISODES, RECIPES, SHIPPED_RECIPE, recipes_help
 
@@ -69,6 +69,9 @@ def run(args: argparse.Namespace) -> int:
     started = time.monotonic()
     # the config file first, before torch is imported: a hostile one fails in a fraction of a second
     config_keys = overrides_from_yaml(args.config) if args.config and not args.resume else {}
+    for name in ("config.yaml", "hyperparams.yaml") if args.resume else ():  # a run's own YAML, likewise
+        if (args.resume / name).is_file():
+            read_yaml_file(args.resume / name, "run file")
     from autoscoop.training.checkpoints import read_run_json  # noqa: PLC0415 - torch is slow to import
     from autoscoop.training.run import TrainArgs, resume, train  # noqa: PLC0415 - torch is slow to import
 
