@@ -136,3 +136,11 @@ def test_a_full_disk_keeps_the_old_file(small_disk):
         write_text_atomically(path, "x" * 200_000)
     assert error.value.errno == errno.ENOSPC and str(path) in describe_os_error(error.value)
     assert path.read_text() == "old" and sorted(os.listdir(small_disk)) == ["out.txt"]
+
+
+def test_a_named_pipe_without_a_writer_does_not_hang(tmp_path):
+    fifo = tmp_path / "config.yaml"
+    os.mkfifo(fifo)
+    start = time.perf_counter()
+    assert read_yaml(fifo, "config file") is None  # read as empty
+    assert time.perf_counter() - start < 2.0

@@ -68,7 +68,7 @@ def read_bytes_bounded(path: str | Path, limit: int, what: str) -> bytes:
     if path.is_dir():
         raise UnsafeInputError(f"{what} {path}: is a folder, not a file")
     try:
-        with open(path, "rb") as handle:
+        with _open_without_waiting(path) as handle:
             data = handle.read(limit + 1)
     except FileNotFoundError:
         raise UnsafeInputError(f"{what} {path}: no such file") from None
@@ -77,6 +77,14 @@ def read_bytes_bounded(path: str | Path, limit: int, what: str) -> bytes:
     if len(data) > limit:
         raise UnsafeInputError(f"{what} {path}: larger than {limit} bytes; refused before parsing")
     return data
+
+
+def _open_without_waiting(path: Path) -> Any:
+    """``path`` opened for reading in binary; a named pipe without a writer does not block the open (it then
+    reads as empty)."""
+    fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK)
+    os.set_blocking(fd, True)
+    return os.fdopen(fd, "rb")
 
 
 def read_text_bounded(path: str | Path, limit: int, what: str) -> str:
