@@ -144,3 +144,20 @@ def test_a_named_pipe_without_a_writer_does_not_hang(tmp_path):
     start = time.perf_counter()
     assert read_yaml(fifo, "config file") is None  # read as empty
     assert time.perf_counter() - start < 2.0
+
+
+def test_a_symbolic_link_keeps_pointing_at_the_replaced_file(tmp_path):
+    target, link = tmp_path / "target.json", tmp_path / "link.json"
+    target.write_text("old")
+    link.symlink_to(target)
+    write_text_atomically(link, "new")
+    assert link.is_symlink() and target.read_text() == "new"
+
+
+def test_a_device_is_written_in_place_never_replaced():
+    write_text_atomically("/dev/null", "nothing")
+    assert not os.path.isfile("/dev/null")
+    with pytest.raises(OSError) as error:
+        write_text_atomically("/dev/full", "x")
+    assert describe_os_error(error.value) == "/dev/full: No space left on device"
+    assert not os.path.isfile("/dev/full")

@@ -192,12 +192,20 @@ def atomic_output(path: str | Path) -> Iterator[Path]:
 
     The temporary name keeps ``path``'s suffix (libraries pick a format by it) and starts with a dot. On
     success the file is fsynced, renamed over ``path`` and the folder fsynced; on any error it is removed
-    and ``path`` is left as it was. Missing folders are created.
+    and ``path`` is left as it was. Missing folders are created. A symbolic link is followed (its target is
+    replaced); a device or a pipe (``/dev/stdout``) cannot be replaced and is written in place.
 
     Raises:
         OSError: from the block or the rename, naming ``path`` (errno and reason kept).
     """
     path = Path(path)
+    if path.exists() and not path.is_file() and not path.is_dir():  # a device or pipe (/dev/stdout): in place
+        try:
+            yield path
+        except OSError as error:
+            raise OSError(error.errno, error.strerror or str(error), str(path)) from error
+        return
+    path = Path(os.path.realpath(path))  # a symbolic link's target is replaced, the link kept
     path.parent.mkdir(parents=True, exist_ok=True)
     tmp = path.with_name(f".{path.name}.{secrets.token_hex(4)}.tmp{path.suffix}")
     try:
@@ -228,7 +236,7 @@ def _fsync(path: Path, flags: int) -> None:
 
 def write_bytes_atomically(path: str | Path, data: bytes) -> None:
     """Replace ``path`` with ``data`` through :func:`atomic_output`."""
-    with atomic_output(path) as tmp, open(tmp, "xb") as handle:
+    with atomic_output(path) as tmp, open(tmp, "wb") as handle:
         handle.write(data)
 
 

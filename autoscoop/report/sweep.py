@@ -52,7 +52,7 @@ def _cell(value: Any, digits: int = 3) -> str:
 
 def write_sweep_csv(rows: Sequence[TrialRow], swept: Sequence[str], path: Path) -> Path:
     """One row per trial, in trial-id order (:data:`CSV_HEAD`, the swept keys, :data:`CSV_TAIL`)."""
-    with atomic_output(path) as tmp, open(tmp, "x", newline="") as handle:
+    with atomic_output(path) as tmp, open(tmp, "w", newline="") as handle:
         writer = csv.writer(handle)
         writer.writerow([*CSV_HEAD, *swept, *CSV_TAIL])
         for row in sorted(rows, key=lambda r: r.trial_id):
