@@ -283,8 +283,12 @@ def _fields(**changes) -> dict[str, np.ndarray]:
     return arrays
 
 
+OUTCOME = {"seed": 0, "fill_factor": 0.5, "mass_kg": 3.5, "particles": 12, "success": True, "cycle_time_s": 5.0,
+           "spilled": 0, "physics_error": False, "steps": STEPS, "episode_return": 3.0}
+
+
 def _record(path: Path, meta: object = None, raw_meta: str | None = None, **changes) -> Path:
-    meta = {"policy": "crafted", "seed": 0, "autoscoop_version": "0.1.0"} if meta is None else meta
+    meta = {"policy": "crafted", "seed": 0, "autoscoop_version": "0.1.0", "outcome": OUTCOME} if meta is None else meta
     np.savez(path, meta=np.array(raw_meta if raw_meta is not None else json.dumps(meta)), **_fields(**changes))
     return path
 
@@ -333,6 +337,17 @@ HOSTILE_RECORDS: dict[str, tuple[Callable[[Path], Path], str]] = {
     "scalar-field": (lambda p: _record(p, reward=np.float64(1.0)), "reward"),
     "text-field": (lambda p: _record(p, reward=np.array(["a", "b", "c", "d"])), "reward"),
     "meta-list": (lambda p: _record(p, meta=[1, 2]), "meta"),
+    "meta-policy-number": (lambda p: _record(p, {"policy": 5, "outcome": OUTCOME}), "meta.policy"),
+    "meta-pile-text": (lambda p: _record(p, {"pile": "steep", "outcome": OUTCOME}), "meta.pile"),
+    "meta-pile-angle-text": (lambda p: _record(p, {"pile": {"angle_deg": "steep"}, "outcome": OUTCOME}),
+                             "meta.pile.angle_deg"),
+    "meta-config-list": (lambda p: _record(p, {"config": [1], "outcome": OUTCOME}), "meta.config"),
+    "meta-start-short": (lambda p: _record(p, {"start": {"tip_world_m": [1]}, "outcome": OUTCOME}),
+                         "meta.start.tip_world_m"),
+    "meta-terminal-text": (lambda p: _record(p, {"terminal_point_m": "abc", "outcome": OUTCOME}),
+                           "meta.terminal_point_m"),
+    "meta-outcome-number": (lambda p: _record(p, {"outcome": 3}), "meta.outcome"),
+    "meta-outcome-partial": (lambda p: _record(p, {"outcome": {"fill_factor": 0.5}}), "meta.outcome"),
     "meta-not-json": (lambda p: _record(p, raw_meta="{policy: "), "record"),
     "meta-deep": (lambda p: _record(p, raw_meta="[" * 100_000 + "]" * 100_000), "record"),
     "missing-field": (lambda p: _saved(p, meta=np.array("{}"), time_s=np.zeros(2)), "missing"),
@@ -349,7 +364,7 @@ RECORD_COMMANDS: dict[str, Callable[[Path, Path], list[str]]] = {
 
 
 def _record_case(command: str, kind: str) -> Case:
-    make, expected = HOSTILE_RECORDS[kind]
+    make, expected = HOSTILE_RECORDS[kind] if kind in HOSTILE_RECORDS else REPORT_ONLY_RECORDS[kind]
 
     def build(tmp: Path) -> Probe:
         folder = tmp / "records"
@@ -360,7 +375,11 @@ def _record_case(command: str, kind: str) -> Case:
     return Case(f"record-{command}-{kind}", build)
 
 
+REPORT_ONLY_RECORDS = {
+    "no-outcome": (lambda p: _record(p, {"policy": "x"}), "meta.outcome"),
+}
 CASES += [_record_case(command, kind) for command in RECORD_COMMANDS for kind in HOSTILE_RECORDS]
+CASES += [_record_case(command, kind) for command in ("report", "report-folder") for kind in REPORT_ONLY_RECORDS]
 
 
 # ----------------------------------------------------------------------------------- training settings

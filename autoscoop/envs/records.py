@@ -17,6 +17,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
+from pydantic import BaseModel, ConfigDict, ValidationError
 
 from autoscoop.core.safe_files import atomic_output, quote
 from autoscoop.core.version import __version__
@@ -159,14 +160,71 @@ def _check_record_size(path: Path) -> None:
                          f"{MAX_RECORD_ARRAY_BYTES}); refused before decompressing")
 
 
+class _MetaPart(BaseModel):
+    """Part of a record's metadata: the keys readers use, typed; any others kept as they are."""
+
+    model_config = ConfigDict(extra="allow")
+
+
+class PileMeta(_MetaPart):
+    angle_deg: float | None = None
+    n_particles: int | None = None
+    radius_m: float | None = None
+
+
+class StartMeta(_MetaPart):
+    state: list[float] | None = None
+    lift_rad: float | None = None
+    tilt_rad: float | None = None
+    tip_world_m: tuple[float, float, float] | None = None
+    particles_xz_m: list[tuple[float, float]] | None = None
+
+
+class OutcomeMeta(_MetaPart):
+    seed: int | None = None
+    fill_factor: float
+    mass_kg: float
+    particles: int | float
+    success: bool
+    cycle_time_s: float | None = None
+    spilled: int | float = 0
+    physics_error: bool = False
+    steps: int = 0
+    episode_return: float | None = None
+
+
+class RecordMeta(_MetaPart):
+    """The metadata of an episode record (:func:`episode_meta`, the recorders' additions), as readers use it."""
+
+    policy: str | None = None
+    source: str | None = None
+    seed: int | None = None
+    autoscoop_version: str | None = None
+    static: bool | None = None
+    pile: PileMeta | None = None
+    terminal_point_m: tuple[float, float] | None = None
+    control_period_s: float | None = None
+    time_limit_s: float | None = None
+    config: dict[str, dict[str, Any]] | None = None
+    start: StartMeta | None = None
+    outcome: OutcomeMeta | None = None
+
+
 def check_record_meta(meta: Any, path: Path) -> None:
-    """A record's metadata: a JSON object, written by this autoscoop's major (0.x: minor) version or an older one.
+    """A record's metadata: a JSON object whose known keys have their types (:class:`RecordMeta`), written by
+    this autoscoop's major (0.x: minor) version or an older one.
 
     Raises:
         ValueError: naming the file and the field.
     """
     if not isinstance(meta, dict):
         raise ValueError(f"{path}: field meta must be a JSON object, got {quote(meta)}")
+    try:
+        RecordMeta.model_validate(meta)
+    except ValidationError as error:
+        first = error.errors()[0]
+        key = ".".join(str(part) for part in first["loc"])
+        raise ValueError(f"{path}: field meta.{key} = {quote(first.get('input'))}: {first['msg']}") from None
     written = meta.get("autoscoop_version")
     if written is None:
         return

@@ -104,12 +104,18 @@ def load_episodes(paths: Iterable[str | Path]) -> list[Episode]:
     """Load every record in ``paths`` (files or folders).
 
     Raises:
-        ValueError: if nothing is found or a file is not an episode record.
+        ValueError: if nothing is found, a file is not an episode record, or a record has no outcome to report
+            (``meta.outcome``).
     """
     files = find_record_files(paths)
     if not files:
         raise ValueError("no episode records (*.npz) found")
-    return [Episode(path=f, record=load_record(f)) for f in files]
+    episodes = [Episode(path=f, record=load_record(f)) for f in files]
+    for episode in episodes:
+        if not episode.outcome:
+            raise ValueError(f"{episode.path}: field meta.outcome is missing; a report needs each episode's outcome "
+                             "(records of static holds are for autoscoop payload calibrate)")
+    return episodes
 
 
 def group_episodes(episodes: Iterable[Episode]) -> dict[tuple[str, float], list[Episode]]:
