@@ -195,6 +195,14 @@ def _actor_files(folder: Path, weights: bytes | None = None, **sidecar_changes) 
     return folder / "policy.safetensors"
 
 
+def _shipped_weights_with_nan() -> bytes:
+    from safetensors.numpy import load_file, save
+
+    tensors = load_file(str(SHIPPED / "default.safetensors"))
+    tensors["head.bias"] = np.full_like(tensors["head.bias"], np.nan)
+    return save(tensors)
+
+
 def _safetensors_claiming(shape: list[int]) -> bytes:
     """A safetensors file whose header declares one float32 tensor of ``shape`` but holds 16 bytes."""
     header = json.dumps({"head.weight": {"dtype": "F32", "shape": shape, "data_offsets": [0, 4 * int(np.prod(shape))]}})
@@ -237,6 +245,7 @@ HOSTILE_POLICIES: dict[str, tuple[Callable[[Path], Path], str]] = {
     "empty-weights": (lambda d: _actor_files(d, b""), "safetensors"),
     "header-claims-huge": (lambda d: _actor_files(d, _safetensors_claiming([2_000_000_000, 12])), "safetensors"),
     "wrong-hash": (lambda d: _actor_files(d, sha256="0" * 64), "SHA-256"),
+    "nan-weights": (lambda d: _actor_files(d, _shipped_weights_with_nan()), "NaN"),
     "huge-hash": (lambda d: _actor_files(d, sha256="f" * 50_000), "SHA-256"),
     "other-format": (lambda d: _actor_files(d, format="x" * 5000), "format"),
     "bad-state-frame": (lambda d: _actor_files(d, state_frame="upside-down"), "state_frame"),

@@ -98,9 +98,13 @@ def load_actor(path: str | Path) -> tuple[PaperActor, dict[str, Any]]:
     _check_header(path, layers, history)
     actor = PaperActor(layers=layers, history_steps=history)
     try:
-        actor.load_state_dict(load_file(str(path)))
+        tensors = load_file(str(path))
+        actor.load_state_dict(tensors)
     except (RuntimeError, KeyError, SafetensorError) as error:
         raise PolicyFileError(f"{path}: weights do not fit the recorded architecture ({quote(str(error))})") from None
+    broken = sorted(name for name, tensor in tensors.items() if not torch.isfinite(tensor).all())
+    if broken:
+        raise PolicyFileError(f"{path}: tensor {broken[0]} holds NaN or infinite values; the actor would command NaN")
     actor.eval()
     return actor, meta
 
