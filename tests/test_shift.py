@@ -11,7 +11,7 @@ import pytest
 from autoscoop.agents.heuristic import HeuristicScooper
 from autoscoop.cli import main
 from autoscoop.core.config import ConfigError, ScoopConfig
-from autoscoop.core.shift_accounting import account, toe_x_m, touching_cluster
+from autoscoop.core.shift_accounting import account, pile_profile, toe_x_m, touching_cluster
 from autoscoop.core.shift_checks import check_shift_config
 from autoscoop.core.shift_script import PHASES, CarryDumpScript, Ranges, ScriptParams
 from autoscoop.envs.shift import shift_world_config
@@ -151,6 +151,14 @@ def test_the_toe_ignores_a_stray_particle_and_what_lies_beside_the_path():
     assert toe == pytest.approx(expected)
     assert toe_x_m(positions, RADIUS, everything, 32.0, path_half_width_m=1.0) < expected
     assert np.isnan(toe_x_m(beside, RADIUS, np.ones(2, bool), 32.0, path_half_width_m=0.23)), "no pile on the path"
+
+
+def test_the_profile_is_the_top_of_the_highest_particle_over_each_point():
+    positions = np.array([[0.0, 0.0, RADIUS], [0.0, 0.1, 3 * RADIUS], [0.5, 0.0, RADIUS]])
+    points, heights = pile_profile(positions, RADIUS, np.ones(3, bool), 0.01)
+    assert heights[np.argmin(np.abs(points))] == pytest.approx(4 * RADIUS, abs=1e-3)
+    assert heights[np.argmin(np.abs(points - 0.5))] == pytest.approx(2 * RADIUS, abs=1e-3)
+    assert heights[np.argmin(np.abs(points - 0.25))] == 0.0
 
 
 # ------------------------------------------------------------------ the scene and the hopper

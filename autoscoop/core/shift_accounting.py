@@ -133,15 +133,17 @@ def account(positions_m: np.ndarray, radius_m: float, in_bucket: np.ndarray, del
 
 
 def pile_profile(positions_m: np.ndarray, radius_m: float, pile: np.ndarray, bin_m: float) -> tuple[np.ndarray, np.ndarray]:
-    """The pile's height along x: the top of its highest particle in each bin of ``bin_m``.
+    """The pile's surface along x: at points ``bin_m`` apart, the top of the highest particle over each point.
 
     Returns:
-        (bin centres in world x, m; heights above the ground, m), empty where the pile is.
+        (points in world x, m; heights above the ground, m; 0 where no particle lies over a point), empty
+        without a pile.
     """
     if not pile.any():
         return np.zeros(0), np.zeros(0)
-    xs, tops = positions_m[pile, 0], positions_m[pile, 2] + radius_m
-    edges = np.arange(xs.min() - radius_m, xs.max() + radius_m + bin_m, bin_m)
-    which = np.digitize(xs, edges) - 1
-    heights = np.array([tops[which == k].max() if np.any(which == k) else 0.0 for k in range(len(edges) - 1)])
-    return (edges[:-1] + edges[1:]) / 2, heights
+    xs, zs = positions_m[pile, 0], positions_m[pile, 2]
+    points = np.arange(xs.min() - radius_m, xs.max() + radius_m + bin_m / 2, bin_m)
+    offsets = points[:, None] - xs[None, :]
+    over = np.abs(offsets) <= radius_m
+    tops = np.where(over, zs[None, :] + np.sqrt(np.clip(radius_m ** 2 - offsets ** 2, 0.0, None)), 0.0)
+    return points, tops.max(axis=1)

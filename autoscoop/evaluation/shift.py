@@ -33,8 +33,8 @@ from autoscoop.envs.shift import make_shift_env, shift_world_config
 from autoscoop.evaluation.stress import one_thread_per_worker
 from autoscoop.sim.work_meter import WorkMeter
 
-PROFILE_BIN_M = 0.05
-"""Width of the bins of the pile's profile, m."""
+PROFILE_BIN_M = 0.02
+"""Spacing of the points of the pile's profile, m."""
 PHYSICS_ERROR = "physics_error"
 """Ends the list of timed-out phases when the simulation diverged during the script."""
 EPISODE_SEEDS_PER_SHIFT = 1000
@@ -232,7 +232,7 @@ def shift_conditions(config: ScoopConfig) -> dict[str, Any]:
         "pile_width_m": 2 * pile.radius_m * pile.across,
         "state": "loose (a pile of free particles)",
         "operation": "I-cycle loading: scoop, back out, drive to the hopper spotted between loader and pile, dump, "
-                     "back off, return",
+                     "curl back while the hopper leaves, return",
         "haul_distance_m": shift.haul_distance_m,
         "receiver": f"hopper {shift.hopper_length_m:g} m x {shift.hopper_width_m:g} m, rim {shift.hopper_height_m:g} m high",
         "rated_load_kg": config.reward.rated_load_kg,
