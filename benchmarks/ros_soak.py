@@ -31,6 +31,9 @@ import sys
 import tempfile
 import threading
 import time
+from collections.abc import Callable, Iterator
+from contextlib import AbstractContextManager, contextmanager
+from dataclasses import dataclass
 from functools import partial
 from pathlib import Path
 from typing import Any
@@ -63,7 +66,11 @@ def relay_main(seed: int) -> int:
     """``--relay``: relay the simulator's sensors; read one fault per line (JSON) on stdin, answer each."""
     rospy = import_rospy()
     rospy.init_node("autoscoop_fault_relay", anonymous=False, disable_signals=True)
-    relay = FaultRelay(SOURCE, seed=seed)
+    return serve_relay(FaultRelay(SOURCE, seed=seed))
+
+
+def serve_relay(relay: Any) -> int:
+    """Once ``relay`` (a FaultRelay) is connected, inject the faults read on stdin (one JSON per line), answering each."""
     relay.wait_connected()
     print(json.dumps({"ready": True}), flush=True)
     for line in sys.stdin:
@@ -108,9 +115,6 @@ class Listener:
     """The controller's commands and status, and the last stamp of each stamped sensor input, as they arrive."""
 
     def __init__(self, config: RobotNodeConfig) -> None:
-        self.rospy = rospy = import_rospy()
-        from std_msgs.msg import String  # noqa: PLC0415
-
         limits = config.limits
         self.bounds = {"cmd_vel": (-limits.max_speed_mps, limits.max_speed_mps),
                        "lift_command": (limits.lift_min_rad, limits.lift_max_rad),
@@ -123,6 +127,13 @@ class Listener:
         self.reading_time: dict[str, float] = {}
         """per stamped input, when its newest reading was taken (its stamp, on the monotonic clock)"""
         self.scoops = 0
+        self.subscribe(config)
+
+    def subscribe(self, config: RobotNodeConfig) -> None:
+        """Listen to the controller's commands and status, ``scoop`` and the stamped inputs (rospy)."""
+        self.rospy = rospy = import_rospy()
+        from std_msgs.msg import String  # noqa: PLC0415
+
         self.subscribers = list(subscribers(config.topics, {
             "cmd_vel": partial(self._command, "cmd_vel", lambda m: m.linear.x),
             "lift_command": partial(self._command, "lift_command", lambda m: m.data),
@@ -130,6 +141,11 @@ class Listener:
             "scoop": self._scoop, **{name: partial(self._reading, name) for name in STAMPED_TOPICS}},
             queue_size=None).values())
         self.subscribers.append(rospy.Subscriber(f"/{NODE_NAME}/status", String, self._status, queue_size=None))
+
+    def close(self) -> None:
+        """Stop listening."""
+        for subscriber in self.subscribers:
+            subscriber.unregister()
 
     def _command(self, topic: str, value: Any, msg: Any) -> None:
         now, v = time.monotonic(), float(value(msg))
@@ -192,12 +208,13 @@ def draw_fault(rng: np.random.Generator) -> tuple[str, str, float]:
     return kind, str(rng.choice(topics)), float(rng.uniform(*DURATION_S[kind]))
 
 
-def _restart(relay: RelayProcess, listener: Listener, env: dict, seed: int, log: Any) -> tuple[RelayProcess, dict]:
+def _restart(relay: RelayProcess, listener: Listener, env: dict, seed: int, log: Any,
+             script: str) -> tuple[RelayProcess, dict]:
     started = time.monotonic()
     relay.kill()
     time.sleep(0.05)  # what was in flight has arrived
     t0 = min(listener.reading_time.values())  # the first input to go stale: the oldest last reading
-    fresh = RelayProcess(env, seed, log)
+    fresh = RelayProcess(env, seed, log, script)
     return fresh, {"kind": "restart", "topic": "restart", "t0": t0, "started": started, "ended": time.monotonic(),
                    "bad_messages": 0}
 
@@ -276,30 +293,53 @@ def evaluate(faults: list[dict], status: list[tuple[float, str]], bound_s: float
             "bound_s": bound_s, "by_kind": dict(sorted(by_kind.items()))}
 
 
-def soak(minutes: float, seed: int = 0, policy: str = "heuristic", work: Path | None = None) -> dict:
-    """Run the soak for ``minutes``; the figures (times in s, memory in kB)."""
+@dataclass(frozen=True)
+class Middleware:
+    """What the soak needs of a middleware: its ``autoscoop`` command, a graph to run in, its listener and relay."""
+
+    command: str
+    """``ros`` or ``ros2``"""
+    graph: Callable[[], AbstractContextManager[dict]]
+    """a context that sets this process up for the middleware and gives the processes' environment"""
+    listener: Callable[[RobotNodeConfig], Listener]
+    relay_script: str
+    """the script whose ``--relay`` runs the relay"""
+
+
+@contextmanager
+def ros1_graph() -> Iterator[dict]:
+    """A private rosmaster, this process a node of it; the environment of its processes."""
+    with RosMaster() as master:
+        master.use_here()
+        import_rospy().init_node("autoscoop_soak", anonymous=True, disable_signals=True)
+        yield master.env
+
+
+ROS1 = Middleware("ros", ros1_graph, Listener, __file__)
+
+
+def soak(minutes: float, seed: int = 0, policy: str = "heuristic", work: Path | None = None,
+         middleware: Middleware = ROS1) -> dict:
+    """Run the soak for ``minutes`` over ``middleware``; the figures (times in s, memory in kB)."""
     config = RobotNodeConfig()
     period, timeout = config.control.control_period_s, config.control.input_timeout_s
-    work = work or Path(tempfile.mkdtemp(prefix="autoscoop-ros-soak-"))
+    work = work or Path(tempfile.mkdtemp(prefix=f"autoscoop-{middleware.command}-soak-"))
     work.mkdir(parents=True, exist_ok=True)
     rng = np.random.default_rng(seed)
-    cli = [sys.executable, "-m", "autoscoop.cli", "ros"]
+    cli = [sys.executable, "-m", "autoscoop.cli", middleware.command]
     remap = [f"{name}:={SOURCE}/{getattr(config.topics, name)}" for name in SENSOR_TOPICS]
     logs = {name: open(work / f"{name}.log", "w") for name in ("controller", "sim", "relay")}
     faults: list[dict] = []
     rss: list[tuple[float, int]] = []
-    with RosMaster() as master:
-        master.use_here()
-        controller = subprocess.Popen([*cli, "controller", "--policy", policy], env=master.env,
+    with middleware.graph() as env:
+        controller = subprocess.Popen([*cli, "controller", "--policy", policy], env=env,
                                       stdout=logs["controller"], stderr=subprocess.STDOUT)
-        sim = subprocess.Popen([*cli, "sim", "--episodes", "0", *remap], env=master.env, stdout=logs["sim"],
+        sim = subprocess.Popen([*cli, "sim", "--episodes", "0", *remap], env=env, stdout=logs["sim"],
                                stderr=subprocess.STDOUT)
         relay = None
+        listener = middleware.listener(config)
         try:
-            rospy = import_rospy()
-            rospy.init_node("autoscoop_soak", anonymous=True, disable_signals=True)
-            listener = Listener(config)
-            relay = RelayProcess(master.env, seed, logs["relay"])
+            relay = RelayProcess(env, seed, logs["relay"], middleware.relay_script)
             if not listener.wait_running(for_s=2.0, timeout_s=120.0):
                 raise RuntimeError(f"no scoop ran; see the logs in {work}")
             started = time.monotonic()
@@ -313,7 +353,8 @@ def soak(minutes: float, seed: int = 0, policy: str = "heuristic", work: Path | 
                 kind, topic, duration = draw_fault(rng)
                 if kind == "restart":
                     restarts += 1
-                    relay, record = _restart(relay, listener, master.env, seed + restarts, logs["relay"])
+                    relay, record = _restart(relay, listener, env, seed + restarts, logs["relay"],
+                                             middleware.relay_script)
                 else:
                     record = relay.inject(kind, topic, duration)
                 faults.append(record)
@@ -334,6 +375,7 @@ def soak(minutes: float, seed: int = 0, policy: str = "heuristic", work: Path | 
                     process.kill()
             for log in logs.values():
                 log.close()
+            listener.close()
     with listener.lock:
         status, speeds = list(listener.status), list(listener.speeds)
         counts, bad = dict(listener.counts), list(listener.bad)
@@ -341,7 +383,8 @@ def soak(minutes: float, seed: int = 0, policy: str = "heuristic", work: Path | 
     stopped, unexplained = stops(status, faults, timeout + period)
     start_kb, end_kb = rss[0][1], rss[-1][1]
     return {
-        "minutes": elapsed / 60.0, "policy": policy, "seed": seed, "scoops": listener.scoops,
+        "middleware": middleware.command, "minutes": elapsed / 60.0, "policy": policy, "seed": seed,
+        "scoops": listener.scoops,
         "commands": {**counts, "total": sum(counts.values())}, "bad_commands": len(bad), "bad": bad[:20],
         "moving_while_stopped": moving_while_stopped(speeds, status),
         "faults": result, "stops": stopped, "stops_not_injected": len(unexplained),
@@ -379,9 +422,9 @@ def print_result(r: dict) -> None:
     print(f"controller memory {m['start'] / 1024:.1f} MiB -> {m['end'] / 1024:.1f} MiB ({m['growth_pct']:+.2f} %)")
 
 
-def main(run_soak=soak, run_relay=relay_main, description: str = __doc__) -> int:
-    """The command line around ``run_soak(minutes, seed, policy, work)`` and, with ``--relay``, ``run_relay(seed)``
-    (this file's, or another middleware's with the same results); exit 0 when the soak met every bound."""
+def main(middleware: Middleware = ROS1, run_relay=relay_main, description: str = __doc__) -> int:
+    """The command line: the soak over ``middleware`` or, with ``--relay``, ``run_relay(seed)`` (this file's, or
+    another middleware's); exit 0 when the soak met every bound."""
     parser = argparse.ArgumentParser(description=description, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--minutes", type=float, default=10.0, help="how long to inject faults (default 10)")
     parser.add_argument("--seed", type=int, default=0)
@@ -396,7 +439,7 @@ def main(run_soak=soak, run_relay=relay_main, description: str = __doc__) -> int
         parser.error(f"--minutes must be a positive number, got {args.minutes}")
     if args.json:
         args.json.parent.mkdir(parents=True, exist_ok=True)
-    result = run_soak(args.minutes, args.seed, args.policy, args.work_dir)
+    result = soak(args.minutes, args.seed, args.policy, args.work_dir, middleware)
     print_result(result)
     if args.json:
         args.json.write_text(json.dumps(result, indent=2) + "\n")
