@@ -12,7 +12,6 @@ time and their ratio.
 from __future__ import annotations
 
 import argparse
-import json
 import os
 import platform
 import sys
