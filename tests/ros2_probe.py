@@ -15,10 +15,9 @@ import dataclasses
 import math
 import threading
 import time
-from collections.abc import Callable
 from typing import Any
 
-from ros_probe import FaultRelay, Received, RobotProbe, start_moving
+from ros_probe import FaultRelay, RobotProbe, start_moving
 
 from autoscoop.deploy.robot_config import TopicsSection
 from autoscoop.deploy.ros2.graph import COMMANDS, LATCHED, TOPIC_QOS, Ros2Node
@@ -60,14 +59,7 @@ class Ros2RobotProbe(RobotProbe):
         self.period_s = 1.0 / rate_hz
         self.readings = SensorReadings(0.0, ("lift", "tilt"), (0.23, 0.0), 0.0, 0.3, -1.0, -20.0, 0.0,
                                        (0.0, 0.0, 0.13), (1.0, 0.0, 0.0, 0.0))
-        self.enabled = {name: True for name in SENSOR_TOPICS}
-        self.last_published: dict[str, float] = {}
-        self.custom: dict[str, Callable[[], Any]] = {}
-        """Per topic, a function that returns the next message to publish instead of the normal one."""
-        self.received: list[Received] = []
-        self.errors: list[str] = []
-        self._lock = threading.Lock()
-        self._stop = threading.Event()
+        self.start_bookkeeping()
         self.writers = {name: node.publisher(getattr(topics, name), type(msg), TOPIC_QOS[name])
                         for name, msg in sensor_messages(self.readings, 1.0) if name in SENSOR_TOPICS}
         self.writers["estop"] = node.publisher(topics.estop, Bool, LATCHED)

@@ -63,6 +63,17 @@ class RobotProbe:
         self.period_s = 1.0 / rate_hz
         self.values = {"lift": lift_rad, "tilt": tilt_rad, "speed": speed_mps, "range": range_m,
                        "lift_torque": lift_torque_nm, "tilt_torque": tilt_torque_nm}
+        self.start_bookkeeping()
+        self.publishers = {**publishers(topics, SENSOR_TOPICS), **publishers(topics, ("estop", "scoop"), queue_size=10)}
+        self.subscribers = list(subscribers(topics, {
+            "cmd_vel": self._record("cmd_vel", lambda m: m.linear.x),
+            "lift_command": self._record("lift", lambda m: m.data),
+            "tilt_command": self._record("tilt", lambda m: m.data)}, queue_size=None).values())
+        self._thread = threading.Thread(target=self._run, name="robot-probe", daemon=True)
+        self._thread.start()
+
+    def start_bookkeeping(self) -> None:
+        """What the probe keeps, whatever the middleware: topics on and off, last sends, commands received."""
         self.enabled = {name: True for name in SENSOR_TOPICS}
         self.last_published: dict[str, float] = {}
         self.custom: dict[str, Callable[[], Any]] = {}
@@ -71,13 +82,6 @@ class RobotProbe:
         self.errors: list[str] = []
         self._lock = threading.Lock()
         self._stop = threading.Event()
-        self.publishers = {**publishers(topics, SENSOR_TOPICS), **publishers(topics, ("estop", "scoop"), queue_size=10)}
-        self.subscribers = list(subscribers(topics, {
-            "cmd_vel": self._record("cmd_vel", lambda m: m.linear.x),
-            "lift_command": self._record("lift", lambda m: m.data),
-            "tilt_command": self._record("tilt", lambda m: m.data)}, queue_size=None).values())
-        self._thread = threading.Thread(target=self._run, name="robot-probe", daemon=True)
-        self._thread.start()
 
     # ---------------------------------------------------------------- publishing
     def normal_message(self, topic: str) -> Any:
