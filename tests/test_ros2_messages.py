@@ -123,3 +123,15 @@ def test_time_from_seconds_round_trips_to_the_nanosecond(seconds):
     stamp = m.Time.from_seconds(seconds)
     assert 0 <= stamp.nanosec < m.NANOSECONDS_PER_SECOND
     assert abs(stamp.to_seconds() - seconds) <= 1e-9 + 1e-15 * seconds
+
+
+def test_a_range_from_iron_or_jazzy_decodes_with_its_variance_ignored():
+    """Iron added a trailing ``variance`` to sensor_msgs/Range: a newer robot's bytes still give our fields."""
+    jazzy = get_typestore(Stores.ROS2_JAZZY)
+    header = jazzy.types["std_msgs/msg/Header"](stamp=jazzy.types["builtin_interfaces/msg/Time"](sec=5, nanosec=6),
+                                                frame_id="tip")
+    theirs = bytes(jazzy.serialize_cdr(jazzy.types["sensor_msgs/msg/Range"](
+        header=header, radiation_type=1, field_of_view=0.5, min_range=0.0, max_range=4.0, range=0.75, variance=0.25),
+        "sensor_msgs/msg/Range"))
+    assert len(theirs) == len(m.Range().serialize()) + 8  # the float32 and its padding
+    assert m.Range.deserialize(theirs) == m.Range(m.Header(m.Time(5, 6), "tip"), 1, 0.5, 0.0, 4.0, 0.75)
