@@ -113,6 +113,8 @@ def finish_run(run_dir: Path, started: float) -> None:
     from autoscoop.commands.export_cmd import export_policy  # noqa: PLC0415
     from autoscoop.training.checkpoints import lock_run_dir, read_run_json, write_run_json  # noqa: PLC0415
 
+    if not (run_dir / "run.json").is_file():  # nothing was trained here
+        return
     export: dict[str, object] = {}
     kept = run_dir / "policy.safetensors"
     try:
