@@ -15,10 +15,9 @@ import numpy as np
 from matplotlib.figure import Figure
 
 from autoscoop.core.safe_files import atomic_output, write_text_atomically
+from autoscoop.report.figures import CONTROLLER_COLOURS, DPI
 from autoscoop.report.markdown import pm
 
-DPI = 120
-COLOURS = ("#C44E52", "#4C72B0", "#55A868", "#8172B3", "#937860", "#DA8BC3")
 PROFILE_EVERY = 5
 """The pile's profile is drawn after the first cycle and every this many cycles."""
 TOTAL_COLUMNS = (
@@ -151,7 +150,7 @@ def plot_fill_and_cycle_time(groups: dict[str, list[dict[str, Any]]], path: Path
     """Fill factor and cycle time per cycle, mean over shifts, one line per policy."""
     fig = Figure(figsize=(9, 5.5), layout="constrained")
     ax_fill, ax_time = fig.subplots(2, 1, sharex=True)
-    for colour, (name, shifts) in zip(COLOURS * 4, groups.items(), strict=False):
+    for colour, (name, shifts) in zip(CONTROLLER_COLOURS * 4, groups.items(), strict=False):
         rows = cycle_means(shifts)
         cycles = [r["cycle"] for r in rows]
         ax_fill.plot(cycles, [r["fill_factor"] for r in rows], "-o", color=colour, label=name)
@@ -190,7 +189,7 @@ def plot_cumulative_delivered(groups: dict[str, list[dict[str, Any]]], path: Pat
     """Delivered mass against shift time, every shift of every policy (one colour per policy)."""
     fig = Figure(figsize=(9, 4.5), layout="constrained")
     ax = fig.subplots()
-    for colour, (name, shifts) in zip(COLOURS * 4, groups.items(), strict=False):
+    for colour, (name, shifts) in zip(CONTROLLER_COLOURS * 4, groups.items(), strict=False):
         for index, shift in enumerate(shifts):
             times = [0.0] + [r["shift_time_s"] for r in shift["cycles"]]
             mass = np.cumsum([0.0] + [r["mass_delivered_kg"] for r in shift["cycles"]])
