@@ -722,7 +722,8 @@ launcher, not from the test process (a child's peak memory counts what it had wh
 @pytest.mark.parametrize("command", SMALL_FILE_COMMANDS)
 def test_an_alias_bomb_of_under_1_kb_costs_little_memory_and_time(command, tmp_path) -> None:
     """The whole process, imports included: under 200 MB at its peak (about 110 MB measured) and a few
-    seconds (under one second on an idle machine)."""
+    seconds (under one second on an idle machine, 5.6 s measured with three training runs on the two
+    cores; the bomb this guards against took 15 s and 0.9 GB, which the memory bound catches whatever the load)."""
     bomb = tmp_path / ("hyperparams.yaml" if command == "resume" else "bomb.yaml")
     bomb.write_text(_alias_bomb())
     assert bomb.stat().st_size <= 1024
@@ -733,7 +734,7 @@ def test_an_alias_bomb_of_under_1_kb_costs_little_memory_and_time(command, tmp_p
     code, peak_kib, wall_s = done.stdout.split()
     assert int(code) == 2 and "aliases" in done.stderr and "Traceback" not in done.stderr
     assert int(peak_kib) < 200 * 1024, f"{int(peak_kib) / 1024:.0f} MB"
-    assert float(wall_s) < 5.0, f"{float(wall_s):.1f} s"
+    assert float(wall_s) < 12.0, f"{float(wall_s):.1f} s"
 
 
 def test_a_frame_the_policy_overrides_is_warned_about(capsys) -> None:
