@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import os
 
 import mujoco
 import numpy as np
@@ -16,6 +17,7 @@ from autoscoop.core.shift_checks import check_shift_config
 from autoscoop.core.shift_script import PHASES, CarryDumpScript, Ranges, ScriptParams
 from autoscoop.envs.shift import shift_world_config
 from autoscoop.evaluation.shift import run_shift
+from autoscoop.sim.glbackend import has_display
 from autoscoop.sim.scene import ScoopSim
 from autoscoop.sim.shift_sim import HELD_DAMPING_NS_M, REACH_BEHIND_TOE_M, ShiftSim
 
@@ -281,3 +283,16 @@ def test_the_pile_out_of_the_scoops_reach_is_held_and_the_rest_moves_freely():
     assert (x > REACH_BEHIND_TOE_M).any() and (x < REACH_BEHIND_TOE_M).any()
     assert np.all(sliding[x > REACH_BEHIND_TOE_M] == HELD_DAMPING_NS_M)
     assert np.all(sliding[x < REACH_BEHIND_TOE_M] == 0.0)
+
+
+@pytest.mark.skipif(not (os.environ.get("MUJOCO_GL") or has_display(os.environ)),
+                    reason="no display and no off-screen OpenGL (install libosmesa6)")
+def test_the_shift_command_films_the_first_shift(tmp_path):
+    video = tmp_path / "shift.mp4"
+    assert main(["shift", "--policy", "heuristic", "--cycles", "1", "--set", "shift.pile_particles=72",
+                 "--set", "pile.variants=1", "--video", str(video)]) == 0
+    import imageio.v2 as imageio
+
+    reader = imageio.get_reader(video)
+    assert reader.count_frames() > 20
+    assert reader.get_data(0).shape[:2] == (432, 768)

@@ -3,8 +3,8 @@
 Each cycle: the policy scoops (an ordinary episode, on the pile as the last scoop left it), then a script backs
 out, drives to the hopper, dumps into it and returns to the pile's retreating toe. Prints the totals per policy
 (mean ± std over the shifts); --json keeps every cycle of every shift; --out writes shift.md (per-cycle and total
-tables, the conditions the figures hold under) and its figures. --compare runs more policies on the same shifts,
-side by side. The pile and the hopper are the shift.* config keys (`autoscoop config` lists them).
+tables, the conditions the figures hold under) and its figures; --video films the first shift. --compare runs more
+policies on the same shifts, side by side. The pile and the hopper are the shift.* config keys (`autoscoop config` lists them).
 """
 
 from __future__ import annotations
@@ -13,9 +13,12 @@ import argparse
 import shlex
 import sys
 import time
+from pathlib import Path
 
 from autoscoop.commands import check_output_dir, check_output_file, config_from_args, options, write_json
+from autoscoop.core.safe_files import atomic_output
 from autoscoop.evaluation.shift import run_shifts
+from autoscoop.evaluation.shift_film import SHIFT_FPS, ShiftFilm
 
 DEFAULT_CYCLES = 15
 
@@ -34,6 +37,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     options.add_workers_option(parser)
     options.add_json_option(parser, "every cycle of every shift, the totals and the conditions")
     options.add_out_option(parser, None, what="folder for shift.md and its figures")
+    parser.add_argument("--video", type=Path, metavar="FILE.mp4",
+                        help="film the first shift (the --policy's, on --seed) from the side to this MP4, "
+                             f"{SHIFT_FPS:g} frames per simulated second")
     options.add_trust_option(parser)
     options.add_config_args(parser)
     parser.set_defaults(func=run)
@@ -46,9 +52,12 @@ def run(args: argparse.Namespace) -> int:
         check_output_file(args.json, "--json")
     if args.out:
         check_output_dir(args.out, "--out")
+    if args.video:
+        check_output_file(args.video, "--video")
     specs = list(dict.fromkeys([args.policy, *args.compare]))
     seeds = list(range(args.seed, args.seed + args.shifts))
-    shifts = run_shifts(specs, config, args.cycles, seeds, workers=args.workers, trust=args.trust)
+    film = ShiftFilm() if args.video else None
+    shifts = run_shifts(specs, config, args.cycles, seeds, workers=args.workers, trust=args.trust, film=film)
 
     from autoscoop.report.shift import format_totals, summarize_totals, write_shift_report  # noqa: PLC0415
 
@@ -62,5 +71,11 @@ def run(args: argparse.Namespace) -> int:
     if args.out:
         for path in write_shift_report(shifts, args.out, command=command):
             print(f"wrote {path}")
+    if film is not None:
+        from autoscoop.report.video import write_mp4  # noqa: PLC0415 - optional dependency (extra "media")
+
+        with atomic_output(args.video) as tmp:  # a failed encoding leaves the previous video
+            write_mp4(film.frames, tmp, fps=film.fps)
+        print(f"wrote {args.video} ({len(film.frames)} frames)")
     print(f"shift took {time.perf_counter() - started:.0f} s")
     return 0

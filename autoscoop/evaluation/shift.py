@@ -30,6 +30,7 @@ from autoscoop.core.state import CommandLimits
 from autoscoop.core.version import __version__
 from autoscoop.envs.rollout import rollout
 from autoscoop.envs.shift import make_shift_env, shift_world_config
+from autoscoop.evaluation.shift_film import ShiftFilm
 from autoscoop.evaluation.stress import one_thread_per_worker
 from autoscoop.sim.work_meter import WorkMeter
 
@@ -50,7 +51,8 @@ def script_params(config: ScoopConfig) -> ScriptParams:
 
 
 def run_shift(policy: Policy, config: ScoopConfig, cycles: int, seed: int = 0, progress: bool = True,
-              label: str | None = None, after_cycle: Callable[[dict[str, Any]], None] | None = None) -> dict[str, Any]:
+              label: str | None = None, after_cycle: Callable[[dict[str, Any]], None] | None = None,
+              film: ShiftFilm | None = None) -> dict[str, Any]:
     """Run one shift of ``cycles`` loading cycles with ``policy`` scooping.
 
     Args:
@@ -62,6 +64,7 @@ def run_shift(policy: Policy, config: ScoopConfig, cycles: int, seed: int = 0, p
         progress: show a progress bar.
         label: the progress bar's name (default ``shift POLICY``).
         after_cycle: called with each cycle's row as it ends.
+        film: films the shift (its frames stay in it).
 
     Returns:
         ``policy``, ``seed``, ``cycles`` (one row per cycle, :func:`_cycle_row`), ``totals``
@@ -76,6 +79,8 @@ def run_shift(policy: Policy, config: ScoopConfig, cycles: int, seed: int = 0, p
     sim = scoop_env.sim
     meter = WorkMeter(sim.model, sim.data)
     sim.add_substep_observer(meter)
+    if film is not None:
+        film.attach(sim)
     script = CarryDumpScript(script_params(world))
     last_obs: list[np.ndarray] = []
     rows: list[dict[str, Any]] = []
@@ -139,6 +144,8 @@ def run_shift(policy: Policy, config: ScoopConfig, cycles: int, seed: int = 0, p
                 break
     finally:
         sim.remove_substep_observer(meter)
+        if film is not None:
+            film.detach()
         env.close()
     return {"policy": policy.name, "seed": seed, "cycles": rows, "totals": shift_totals(rows),
             "conditions": shift_conditions(world), "autoscoop_version": __version__}
@@ -241,7 +248,7 @@ def shift_conditions(config: ScoopConfig) -> dict[str, Any]:
 
 
 def run_shifts(specs: list[str], config: ScoopConfig, cycles: int, seeds: list[int], workers: int = 1,
-               trust: bool = False, progress: bool = True) -> list[dict[str, Any]]:
+               trust: bool = False, progress: bool = True, film: ShiftFilm | None = None) -> list[dict[str, Any]]:
     """Run a shift for every policy and seed: the policies side by side on the same shifts.
 
     Args:
@@ -252,6 +259,7 @@ def run_shifts(specs: list[str], config: ScoopConfig, cycles: int, seeds: list[i
         workers: processes sharing the shifts (spawned; the results do not depend on it).
         trust: allow an SB3 .zip policy (loading one unpickles it).
         progress: show progress bars.
+        film: films the first shift (the first policy's, on the first seed), run in this process.
 
     Returns:
         One :func:`run_shift` dict per (policy, seed), the policies in order, each over ``seeds``, with ``policy`` the
@@ -264,20 +272,24 @@ def run_shifts(specs: list[str], config: ScoopConfig, cycles: int, seeds: list[i
     for spec in specs:
         load_policy(spec, config, trust=trust)
     jobs = [(spec, seed) for spec in specs for seed in seeds]
-    if workers == 1 or len(jobs) == 1:
-        return [_shift_of_spec(spec, config.to_dict(), cycles, seed, trust, progress) for spec, seed in jobs]
+    filmed = []
+    if film is not None:  # rendering stays in this process
+        filmed = [_shift_of_spec(*jobs[0], config.to_dict(), cycles, trust, progress, film)]
+        jobs = jobs[1:]
+    if workers == 1 or len(jobs) <= 1:
+        return filmed + [_shift_of_spec(spec, seed, config.to_dict(), cycles, trust, progress) for spec, seed in jobs]
     context = multiprocessing.get_context("spawn")
     with ProcessPoolExecutor(max_workers=min(workers, len(jobs)), mp_context=context,
                              initializer=one_thread_per_worker) as pool:
-        futures = [pool.submit(_shift_of_spec, spec, config.to_dict(), cycles, seed, trust, False) for spec, seed in jobs]
+        futures = [pool.submit(_shift_of_spec, spec, seed, config.to_dict(), cycles, trust, False) for spec, seed in jobs]
         bar = tqdm(futures, desc=f"shifts ({min(workers, len(jobs))} workers)", unit="shift", disable=not progress)
-        return [future.result() for future in bar]
+        return filmed + [future.result() for future in bar]
 
 
-def _shift_of_spec(spec: str, config: dict[str, Any], cycles: int, seed: int, trust: bool,
-                   progress: bool) -> dict[str, Any]:
+def _shift_of_spec(spec: str, seed: int, config: dict[str, Any], cycles: int, trust: bool, progress: bool,
+                   film: ShiftFilm | None = None) -> dict[str, Any]:
     """One shift of the policy named ``spec`` (in a worker process, or here)."""
     built = ScoopConfig.from_dict(config)
     result = run_shift(load_policy(spec, built, trust=trust), built, cycles, seed=seed, progress=progress,
-                       label=f"shift {spec} seed {seed}")
+                       label=f"shift {spec} seed {seed}", film=film)
     return {**result, "policy": spec}
