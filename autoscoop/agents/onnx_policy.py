@@ -23,6 +23,7 @@ from autoscoop.core.state import (
     STATE_SIZE,
     ActorInputHistory,
     actor_input_size,
+    checked_history_steps,
     recorded_state_frame,
 )
 
@@ -73,10 +74,8 @@ class OnnxPolicy:
                              f"is {self.metadata.get('autoscoop_format')!r}, expected {ONNX_FORMAT!r}); "
                              "write it with `autoscoop export --onnx`")
         history = self.metadata.get("history_steps", "1")
-        if not history.isdigit() or not 1 <= int(history) <= 8:
-            raise ValueError(f"ONNX policy {self.path}: metadata history_steps {history!r} is not a whole number "
-                             "from 1 to 8")
-        self.history = ActorInputHistory(int(history))
+        self.history = ActorInputHistory(checked_history_steps(int(history) if history.isdigit() else history,
+                                                               f"ONNX policy {self.path}"))
         size = actor_input_size(self.history.history_steps)
         inputs, outputs = self.session.get_inputs(), self.session.get_outputs()
         if not _is_batch_of(inputs, INPUT_NAME, size):

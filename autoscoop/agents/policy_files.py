@@ -18,7 +18,12 @@ from safetensors.torch import load_file, save_file
 
 from autoscoop.agents.networks import PaperActor
 from autoscoop.core.safe_files import UnsafeInputError, atomic_output, quote, read_json, write_json_atomically
-from autoscoop.core.state import ActorInputHistory, history_steps_for_input, recorded_state_frame
+from autoscoop.core.state import (
+    ActorInputHistory,
+    checked_history_steps,
+    history_steps_for_input,
+    recorded_state_frame,
+)
 
 FORMAT = "autoscoop-actor/1"
 
@@ -42,8 +47,6 @@ MAX_SIDECAR_BYTES = 64 << 10
 """cap of an actor's ``.json`` sidecar, bytes."""
 MAX_LAYERS, MAX_WIDTH = 16, 4096
 """the most hidden layers, and units per layer, a sidecar may declare."""
-MAX_HISTORY_STEPS = 8
-"""the most states (and commands) an actor may read (:class:`autoscoop.core.state.ActorInputHistory`)."""
 
 
 def save_actor(actor: PaperActor, path: str | Path, metadata: dict[str, Any] | None = None) -> Path:
@@ -91,10 +94,10 @@ def load_actor(path: str | Path) -> tuple[PaperActor, dict[str, Any]]:
             and all(isinstance(n, int) and not isinstance(n, bool) and 0 < n <= MAX_WIDTH for n in layers)):
         raise PolicyFileError(f"{sidecar_path}: 'layers' must be a list of 1 to {MAX_LAYERS} whole numbers in "
                               f"[1, {MAX_WIDTH}] (hidden layer widths, e.g. [100, 80, 60]); got {quote(layers)}")
-    history = meta.get("history_steps", 1)
-    if not isinstance(history, int) or isinstance(history, bool) or not 1 <= history <= MAX_HISTORY_STEPS:
-        raise PolicyFileError(f"{sidecar_path}: 'history_steps' must be a whole number from 1 to {MAX_HISTORY_STEPS}, "
-                              f"got {quote(history)}")
+    try:
+        history = checked_history_steps(meta.get("history_steps", 1), str(sidecar_path))
+    except ValueError as error:
+        raise PolicyFileError(str(error)) from None
     _check_header(path, layers, history)
     actor = PaperActor(layers=layers, history_steps=history)
     try:

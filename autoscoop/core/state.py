@@ -201,6 +201,22 @@ ACTION_CENTRE = np.zeros(ACTION_SIZE, dtype=np.float32)
 ACTION_SCALE = np.ones(ACTION_SIZE, dtype=np.float32)
 
 
+MAX_HISTORY_STEPS = 8
+"""the most states (and commands) an actor may read."""
+
+
+def checked_history_steps(value: object, source: str) -> int:
+    """``value`` as a ``history_steps`` (a whole number from 1 to :data:`MAX_HISTORY_STEPS`).
+
+    Raises:
+        ValueError: naming ``source`` (a file or a recipe) and the allowed range.
+    """
+    if not isinstance(value, int) or isinstance(value, bool) or not 1 <= value <= MAX_HISTORY_STEPS:
+        shown = repr(value)[:200]
+        raise ValueError(f"{source}: history_steps must be a whole number from 1 to {MAX_HISTORY_STEPS}, got {shown}")
+    return value
+
+
 def actor_input_size(history_steps: int) -> int:
     """How many numbers the actor reads: the 12-number state alone for ``history_steps`` 1 (the paper's),
     else that many states and as many earlier commands (:class:`ActorInputHistory`)."""

@@ -12,7 +12,7 @@ from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv
 from autoscoop.agents import sb3_policies
 from autoscoop.agents.networks import PAPER_LAYERS
 from autoscoop.core.config import ScoopConfig
-from autoscoop.core.state import ACTION_SIZE
+from autoscoop.core.state import ACTION_SIZE, checked_history_steps
 from autoscoop.envs.history import ActorInputObservation
 from autoscoop.envs.privileged import PrivilegedObservation
 from autoscoop.envs.scoop import make_scoop_env
@@ -39,12 +39,9 @@ def history_steps(spec: dict[str, Any]) -> int:
     """The YAML's ``history_steps``: how many states (and commands) the actor reads (1 without the key).
 
     Raises:
-        ValueError: a value that is not a whole number from 1 to 8.
+        ValueError: a value that is not a whole number from 1 to :data:`~autoscoop.core.state.MAX_HISTORY_STEPS`.
     """
-    steps = spec.get("history_steps", 1)
-    if not isinstance(steps, int) or isinstance(steps, bool) or not 1 <= steps <= 8:
-        raise ValueError(f"history_steps must be a whole number from 1 to 8, got {steps!r}")
-    return steps
+    return checked_history_steps(spec.get("history_steps", 1), "the recipe")
 
 
 def make_noise(spec: dict[str, Any], n_envs: int) -> Any:
