@@ -136,3 +136,16 @@ def test_the_environment_charges_a_raised_approach_and_stops_once_the_tip_reache
     infos = [env.step(np.array([0.0, -0.5, 0.0]))[4] for _ in range(3)]  # lifting after the pile is free
     assert touched < 8 and all(info["reward_approach_height"] == 0.0 for info in infos)
     env.close()
+
+
+def test_time_cost_makes_lingering_short_of_the_terminal_point_cost_and_is_off_by_default():
+    config = RewardConfig(c_time=1.0)
+    reward, terms = scoop_reward(0.3, 0.05, True, 0.0, config)  # hovering: the progress term pays nearly 1
+    assert terms["reward_time"] == -1.0
+    assert reward == pytest.approx(sum(terms.values())) and reward <= 0.0
+    reached, reached_terms = scoop_reward(0.3, 0.05, True, 0.8, config)
+    assert reached_terms["reward_mass"] > 0.0 and reached == pytest.approx(sum(reached_terms.values()))
+    _, paper = scoop_reward(0.3, 0.05, True, 0.0, RewardConfig())
+    assert set(paper) == {"reward_progress", "reward_mass"}
+    with pytest.raises(ConfigError, match="c_time"):
+        RewardConfig.from_dict({"c_time": -1.0})
