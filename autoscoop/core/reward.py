@@ -27,6 +27,9 @@ actuators are spared the jerk.
 above h_o = ``reward.approach_height_from_m`` until the tip first reaches the pile (the term
 ``reward_approach_height``): a bucket raised in front of the pile and dropped again before it cuts
 costs a second of the cycle and the energy of the lift.
+``reward.c_overload_step`` > 0 costs c_overload_step * (w_t - w_s) at every step for mass above
+w_s = ``reward.overload_step_from`` in the bucket (the term ``reward_overload_step``): an overload is cheapest
+to shed at the pile, right after the cut, not short of the terminal point.
 ``reward.c_time`` > 0 costs c_time at every step (the term ``reward_time``): P_t pays up to 1 a step, so
 with the time limit bootstrapped, lingering short of the terminal point (shaking particles out, say) and
 reaching it later pays about as much as reaching it now; with c_time = 1 no step pays, and the mass
@@ -76,7 +79,8 @@ def scoop_reward(tip_to_pile_m: float, tip_to_terminal_m: float, penetrating: bo
     Returns:
         (reward, {"reward_progress": P_t, "reward_mass": c_w * w_t or 0}, with "reward_pitch" where
         ``c_pitch`` > 0, "reward_action_change" where ``c_action_change`` > 0 "reward_approach_height"
-        where ``c_approach_height`` > 0 and "reward_time" where ``c_time`` > 0); the terms sum to the reward.
+        where ``c_approach_height`` > 0, "reward_overload_step" where ``c_overload_step`` > 0 and "reward_time"
+        where ``c_time`` > 0); the terms sum to the reward.
     """
     distance = tip_to_terminal_m if penetrating else tip_to_pile_m
     progress = 1.0 - math.tanh(distance / config.distance_scale_m) ** 2
@@ -95,6 +99,8 @@ def scoop_reward(tip_to_pile_m: float, tip_to_terminal_m: float, penetrating: bo
     if config.c_approach_height:
         excess_m = 0.0 if approach_height_m is None else max(approach_height_m - config.approach_height_from_m, 0.0)
         terms["reward_approach_height"] = -config.c_approach_height * excess_m
+    if config.c_overload_step:
+        terms["reward_overload_step"] = -config.c_overload_step * max(w - config.overload_step_from, 0.0)
     if config.c_time:
         terms["reward_time"] = -config.c_time
     return float(sum(terms.values())), terms
