@@ -152,12 +152,15 @@ def test_time_cost_makes_lingering_short_of_the_terminal_point_cost_and_is_off_b
 
 
 def test_overload_step_cost_charges_every_step_above_its_threshold_and_is_off_by_default():
-    config = RewardConfig(c_overload_step=10.0, overload_step_from=1.05)
-    reward, terms = scoop_reward(0.3, 0.5, True, 1.25, config)  # carrying 1.25 of the rated load
+    config = RewardConfig(c_overload_step=10.0)
+    overload_fill = ScoopConfig().scoop.overload_fill  # 1.05: what evaluation counts as an overload
+    reward, terms = scoop_reward(0.3, 0.5, True, 1.25, config, overload_fill=overload_fill)  # carrying 1.25
     assert terms["reward_overload_step"] == pytest.approx(-2.0)
     assert reward == pytest.approx(sum(terms.values()))
-    assert scoop_reward(0.3, 0.5, True, 1.0, config)[1]["reward_overload_step"] == 0.0
+    assert scoop_reward(0.3, 0.5, True, 1.0, config, overload_fill=overload_fill)[1]["reward_overload_step"] == 0.0
     _, paper = scoop_reward(0.3, 0.5, True, 1.25, RewardConfig())
     assert set(paper) == {"reward_progress", "reward_mass"}
-    with pytest.raises(ConfigError, match="overload_step_from"):
-        RewardConfig.from_dict({"overload_step_from": 0.1})
+    with pytest.raises(ValueError, match="overload_fill"):
+        scoop_reward(0.3, 0.5, True, 1.25, config)
+    with pytest.raises(ConfigError, match="c_overload_step"):
+        RewardConfig.from_dict({"c_overload_step": -1.0})

@@ -301,11 +301,9 @@ class RewardConfig(ConfigModel):
                                        "reward)", 0.0, 1000.0)
     approach_height_from_m: float = setting(0.06, "m", "tip height above the ground from which "
                                             "c_approach_height costs", 0.0, 0.5)
-    c_overload_step: float = setting(0.0, "-", "each step costs c_overload_step * (w - overload_step_from) for mass "
-                                     "above overload_step_from in the bucket (an overload is cheapest to shed "
+    c_overload_step: float = setting(0.0, "-", "each step costs c_overload_step * (w - scoop.overload_fill) for "
+                                     "mass in the bucket above an overload (an overload is cheapest to shed "
                                      "while the bucket is still at the pile; 0: off, the paper's reward)", 0.0, 1000.0)
-    overload_step_from: float = setting(1.05, "-", "fill factor w from which each step costs c_overload_step",
-                                        0.5, 2.0)
     c_time: float = setting(0.0, "-", "each control period costs c_time (the progress term pays up to 1 a "
                             "period, so hovering short of the terminal point pays nearly as much as reaching it "
                             "late; c_time 1 makes every period cost; 0: off, the paper's reward)", 0.0, 10.0)

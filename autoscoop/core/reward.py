@@ -27,9 +27,10 @@ actuators are spared the jerk.
 above h_o = ``reward.approach_height_from_m`` until the tip first reaches the pile (the term
 ``reward_approach_height``): a bucket raised in front of the pile and dropped again before it cuts
 costs a second of the cycle and the energy of the lift.
-``reward.c_overload_step`` > 0 costs c_overload_step * (w_t - w_s) at every step for mass above
-w_s = ``reward.overload_step_from`` in the bucket (the term ``reward_overload_step``): an overload is cheapest
-to shed at the pile, right after the cut, not short of the terminal point.
+``reward.c_overload_step`` > 0 costs c_overload_step * (w_t - w_v) at every step for mass above
+w_v = ``scoop.overload_fill`` in the bucket, what evaluation counts as an overload (the term
+``reward_overload_step``): an overload is cheapest to shed at the pile, right after the cut, not short of
+the terminal point.
 ``reward.c_time`` > 0 costs c_time at every step (the term ``reward_time``): P_t pays up to 1 a step, so
 with the time limit bootstrapped, lingering short of the terminal point (shaking particles out, say) and
 reaching it later pays about as much as reaching it now; with c_time = 1 no step pays, and the mass
@@ -61,7 +62,8 @@ def action_change(previous: Sequence[float], action: Sequence[float]) -> float:
 def scoop_reward(tip_to_pile_m: float, tip_to_terminal_m: float, penetrating: bool, w: float,
                  config: RewardConfig, volumetric_fill: float = 0.0,
                  chassis_pitch_rad: float = 0.0, command_change: float = 0.0,
-                 approach_height_m: float | None = None) -> tuple[float, dict[str, float]]:
+                 approach_height_m: float | None = None,
+                 overload_fill: float | None = None) -> tuple[float, dict[str, float]]:
     """Reward of one step and its terms.
 
     Args:
@@ -75,10 +77,12 @@ def scoop_reward(tip_to_pile_m: float, tip_to_terminal_m: float, penetrating: bo
         command_change: u_t of :func:`action_change`, 0 to 1 (``c_action_change`` > 0).
         approach_height_m: the tip's height above the ground, m, while it has not yet reached the pile;
             ``None`` once it has (``c_approach_height`` > 0).
+        overload_fill: ``scoop.overload_fill``, the fill factor above which a load is an overload
+            (``c_overload_step`` > 0).
 
     Returns:
         (reward, {"reward_progress": P_t, "reward_mass": c_w * w_t or 0}, with "reward_pitch" where
-        ``c_pitch`` > 0, "reward_action_change" where ``c_action_change`` > 0 "reward_approach_height"
+        ``c_pitch`` > 0, "reward_action_change" where ``c_action_change`` > 0, "reward_approach_height"
         where ``c_approach_height`` > 0, "reward_overload_step" where ``c_overload_step`` > 0 and "reward_time"
         where ``c_time`` > 0); the terms sum to the reward.
     """
@@ -100,7 +104,9 @@ def scoop_reward(tip_to_pile_m: float, tip_to_terminal_m: float, penetrating: bo
         excess_m = 0.0 if approach_height_m is None else max(approach_height_m - config.approach_height_from_m, 0.0)
         terms["reward_approach_height"] = -config.c_approach_height * excess_m
     if config.c_overload_step:
-        terms["reward_overload_step"] = -config.c_overload_step * max(w - config.overload_step_from, 0.0)
+        if overload_fill is None:
+            raise ValueError("reward.c_overload_step needs the overload threshold (scoop.overload_fill)")
+        terms["reward_overload_step"] = -config.c_overload_step * max(w - overload_fill, 0.0)
     if config.c_time:
         terms["reward_time"] = -config.c_time
     return float(sum(terms.values())), terms

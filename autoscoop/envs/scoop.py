@@ -231,7 +231,7 @@ class ScoopEnv(gym.Env):
         reward, terms = scoop_reward(info["tip_to_pile_m"], info["tip_to_terminal_m"], info["penetrating"],
                                      float(np.float32(info["fill_factor"])), cfg.reward, info["volumetric_fill"],
                                      chassis_pitch_rad=pitch, command_change=change,
-                                     approach_height_m=approach_height)
+                                     approach_height_m=approach_height, overload_fill=cfg.scoop.overload_fill)
         info.update(terms)
         terminated = info["reached"]  # the scoop ends at the terminal point, loaded or not
         return obs, float(reward), bool(terminated), False, info
