@@ -27,13 +27,10 @@ from autoscoop.evaluation.stress import run_stress, select_cases
 def candidates_of(run_dir: Path, snapshots: int | None) -> list[dict]:
     """The validated candidates of ``selection.json``, or the ``snapshots`` best evaluated snapshots of the last world."""
     if snapshots:
-        from autoscoop.training.checkpoints import read_run_yaml, snapshot_candidates  # noqa: PLC0415
-        from autoscoop.training.settings import curriculum_stages  # noqa: PLC0415
+        from autoscoop.commands.train_cmd import last_world_snapshots  # noqa: PLC0415 - torch is slow to import
 
-        stages = curriculum_stages(read_run_yaml(run_dir, "hyperparams.yaml") or {})
-        last_world_from = stages[-1][0] if stages else 0
-        return [{"name": f"episode {episode}", "path": str(path), "periodic": score}
-                for episode, score, path in snapshot_candidates(run_dir, snapshots, last_world_from)]
+        found, _ = last_world_snapshots(run_dir, snapshots)
+        return [{"name": f"episode {episode}", "path": str(path), "periodic": score} for episode, score, path in found]
     selection = run_dir / "selection.json"
     if not selection.is_file():
         raise SystemExit(f"{selection} not found: the run has made no validated choice (or give --snapshots N)")

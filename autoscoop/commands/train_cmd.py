@@ -144,6 +144,17 @@ def selection_pending(run_dir: Path) -> bool:
     return selection_settings(read_run_yaml(run_dir, "hyperparams.yaml") or {}) is not None
 
 
+def last_world_snapshots(run_dir: Path, count: int) -> tuple[list[tuple[int, float, Path]], int]:
+    """The run's ``count`` best evaluated snapshots of its last curriculum world by the periodic evaluation, as
+    (episode, periodic score, actor file), and the episode from which that world ran (0 without a curriculum)."""
+    from autoscoop.training.checkpoints import read_run_yaml, snapshot_candidates  # noqa: PLC0415 - torch is slow
+    from autoscoop.training.settings import curriculum_stages  # noqa: PLC0415
+
+    stages = curriculum_stages(read_run_yaml(run_dir, "hyperparams.yaml") or {})
+    last_world_from = stages[-1][0] if stages else 0
+    return snapshot_candidates(run_dir, count, last_world_from), last_world_from
+
+
 def rank_run_snapshots(run_dir: Path, settings: SelectionSettings,
                        progress: bool = True) -> tuple[list[tuple[int, float, Path]], list[Ranked], int]:
     """Validate the run's best snapshots of its last curriculum world on every stress case, as its recipe's
@@ -157,12 +168,8 @@ def rank_run_snapshots(run_dir: Path, settings: SelectionSettings,
     import os  # noqa: PLC0415
 
     from autoscoop.evaluation.selection import rank_candidates  # noqa: PLC0415 - torch is slow to import
-    from autoscoop.training.checkpoints import read_run_yaml, snapshot_candidates  # noqa: PLC0415
-    from autoscoop.training.settings import curriculum_stages  # noqa: PLC0415
 
-    stages = curriculum_stages(read_run_yaml(run_dir, "hyperparams.yaml") or {})
-    last_world_from = stages[-1][0] if stages else 0
-    candidates = snapshot_candidates(run_dir, settings.candidates, last_world_from)
+    candidates, last_world_from = last_world_snapshots(run_dir, settings.candidates)
     if not candidates:
         return [], [], last_world_from
     ranked = rank_candidates([(f"episode {episode}", path) for episode, _, path in candidates],
