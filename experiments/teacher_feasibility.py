@@ -12,7 +12,7 @@ selection has nothing to rank and the export fails after training, by design of 
     .venv/bin/python experiments/teacher_feasibility.py train --recipe robot_history --seed 10 --n-envs 2 \
         --episodes 4000 --set reward.overload_from=1.0 --set reward.c_overload_step=20 --out runs/teacher-s10
     .venv/bin/python experiments/teacher_feasibility.py evaluate runs/teacher-s10 --episodes 100 \
-        --cases nominal,light,heavy,randomized
+        --cases nominal,light,heavy,randomized --json out/teacher_cases.json
 """
 
 from __future__ import annotations
@@ -28,6 +28,7 @@ from autoscoop.agents import sb3_policies
 from autoscoop.agents.loading import SB3Policy
 from autoscoop.agents.sb3_policies import PrivilegedState, is_privileged
 from autoscoop.core.config import ScoopConfig
+from autoscoop.core.safe_files import write_json_atomically
 from autoscoop.envs.rollout import rollout
 from autoscoop.evaluation.stress import row_from_outcomes, select_cases
 
@@ -61,7 +62,9 @@ def evaluate(argv: list[str]) -> int:
     parser.add_argument("--episodes", type=int, default=100)
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--cases", default="nominal,light,heavy,randomized")
+    parser.add_argument("--json", type=Path, default=None, help="write each case's figures here")
     args = parser.parse_args(argv)
+    results = {}
     history = int((read_run_yaml(args.run_dir, "hyperparams.yaml") or {}).get("history_steps", 1))
     frame = read_run_json(args.run_dir).get("state_frame", "chassis")  # the frame the actor was trained in
     for case in select_cases(args.cases):
@@ -75,10 +78,17 @@ def evaluate(argv: list[str]) -> int:
         env.close()
         row = row_from_outcomes(case, outcomes)
         s = row.stats
-        particles = np.mean([o.particles for o in outcomes])
+        particles = float(np.mean([o.particles for o in outcomes]))
+        results[case.name] = {key: s[key] for key in ("success_rate", "fill_factor_mean", "volumetric_fill_mean",
+                                                      "overload_rate", "cycle_time_mean")} | {
+            "particles_mean": particles, "particles_std": float(np.std([o.particles for o in outcomes])),
+            "passed": row.passed}
         print(f"{case.name}: success {s['success_rate']:.2f}, fill {s['fill_factor_mean']:.3f}, volumetric "
               f"{s['volumetric_fill_mean']:.2f}, overload {s['overload_rate']:.2f}, cycle {s['cycle_time_mean']:.2f} s, "
-              f"particles {particles:.1f} ({'holds' if row.passed else 'fails'})", flush=True)
+              f"particles {particles:.1f} ± {results[case.name]['particles_std']:.1f} ({'holds' if row.passed else 'fails'})", flush=True)
+    if args.json:
+        write_json_atomically(args.json, {"run": str(args.run_dir), "model": "policy.zip (the best periodic evaluation's)",
+                                          "episodes": args.episodes, "seed": args.seed, "cases": results})
     return 0
 
 
