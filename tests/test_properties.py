@@ -342,6 +342,7 @@ def simulate(steps: list[Step], timeout_s: float, max_future_s: float, seed: int
     sent: dict[str, float] = {}
     commands: list[tuple[float, object]] = []
     faults: list[list[float]] = []
+    healthy_at = [-math.inf]  # the last instant every input was fresh and good, when a command was published
     t = 0.0
     for name in SENSOR_INPUTS + FLOAT_INPUTS:  # a healthy start: every input fresh, a scoop requested
         good = Message(name, True, (0.23, 0.0) if name == "joint_states" else (0.1,))
@@ -358,7 +359,9 @@ def simulate(steps: list[Step], timeout_s: float, max_future_s: float, seed: int
     def note_fault(start, end):
         if start >= end:
             return
-        if faults and faults[-1][1] >= start:
+        # two faults meet without merging where the inputs were healthy for an instant between them (a command
+        # published then may drive, for no time at all)
+        if faults and faults[-1][1] >= start and start != healthy_at[0]:
             faults[-1][1] = max(faults[-1][1], end)
         else:
             faults.append([start, end])
@@ -387,6 +390,8 @@ def simulate(steps: list[Step], timeout_s: float, max_future_s: float, seed: int
             stamp = None if message.name in FLOAT_INPUTS else _stamp(message, t, sent, timeout_s, max_future_s)
             _send(core, message, t, stamp)
             oracle.message(message.name, message.good, t, stamp)
+        if oracle.fault_from(t) > t:
+            healthy_at[0] = t
         publish(t)
     return core, commands, faults
 
