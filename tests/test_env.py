@@ -164,3 +164,19 @@ def test_train_eval_and_stress_say_how_their_config_names_the_registered_ids(com
     text = "".join(capsys.readouterr().out.split())  # argparse wraps lines, at hyphens too
     for env_id, keys in registered_worlds().items():
         assert env_id in text and all(f"{key}=" in text for key in keys)
+
+
+def test_energy_cost_charges_the_work_of_each_period_and_more_for_a_busier_one():
+    """reward.c_energy: each step's term is the actuators' positive work over that period, measured in the scene
+    the episode runs in; driving and lifting cost more than holding still, and the other terms are unchanged."""
+    costed, plain = ScoopEnv(**SMALL, **{"reward.c_energy": 1.0}), ScoopEnv(**SMALL)
+    work = {}
+    for name, action in (("still", np.zeros(3)), ("busy", np.array([1.0, -1.0, -1.0]))):
+        for env in (costed, plain):
+            env.reset(seed=3)
+        _, reward, _, _, info = costed.step(action)
+        _, plain_reward, _, _, plain_info = plain.step(action)
+        work[name] = -info["reward_energy"]
+        assert "reward_energy" not in plain_info
+        assert reward == pytest.approx(plain_reward - work[name])
+    assert work["busy"] > 1.0 > work["still"] >= 0.0

@@ -164,3 +164,18 @@ def test_overload_step_cost_charges_every_step_above_its_threshold_and_is_off_by
         scoop_reward(0.3, 0.5, True, 1.25, config)
     with pytest.raises(ConfigError, match="c_overload_step"):
         RewardConfig.from_dict({"c_overload_step": -1.0})
+
+
+def test_energy_cost_charges_the_periods_actuator_work_and_is_off_by_default():
+    config = RewardConfig(c_energy=0.1)
+    reward, terms = scoop_reward(0.3, 0.5, True, 0.5, config, actuator_work_j=12.0)
+    assert terms["reward_energy"] == pytest.approx(-1.2)
+    assert reward == pytest.approx(sum(terms.values()))
+    assert scoop_reward(0.3, 0.5, True, 0.5, config)[1]["reward_energy"] == 0.0  # a still loader spends nothing
+    _, paper = scoop_reward(0.3, 0.5, True, 0.5, RewardConfig(), actuator_work_j=12.0)
+    assert set(paper) == {"reward_progress", "reward_mass"}
+    for bad in (-1.0, float("nan"), float("inf")):
+        with pytest.raises(ValueError, match="actuator_work_j"):
+            scoop_reward(0.3, 0.5, True, 0.5, config, actuator_work_j=bad)
+    with pytest.raises(ConfigError, match="c_energy"):
+        RewardConfig.from_dict({"c_energy": -1.0})

@@ -15,11 +15,13 @@ from autoscoop.core.config import ConfigError, ScoopConfig
 from autoscoop.core.shift_accounting import account, pile_profile, toe_x_m, touching_cluster
 from autoscoop.core.shift_checks import check_shift_config
 from autoscoop.core.shift_script import PHASES, CarryDumpScript, Ranges, ScriptParams
+from autoscoop.envs.scoop import make_scoop_env
 from autoscoop.envs.shift import shift_world_config
 from autoscoop.evaluation.shift import run_shift
 from autoscoop.sim.glbackend import has_display
-from autoscoop.sim.scene import ScoopSim
+from autoscoop.sim.scene import WHEELS, ScoopSim
 from autoscoop.sim.shift_sim import HELD_DAMPING_NS_M, REACH_BEHIND_TOE_M, ShiftSim
+from autoscoop.sim.work_meter import ACTUATORS, WorkMeter
 
 RADIUS = 0.034
 SMALL_SHIFT = {"shift.pile_particles": 72, "shift.pile_layers": 3, "pile.variants": 1}
@@ -213,7 +215,10 @@ def test_a_shift_delivers_scoops_and_the_pile_retreats(two_cycles):
     assert set(first["phase_times_s"]) == set(PHASES[:-1]) and not first["timed_out_phases"]
     assert 0 < first["toe_retreat_m"] < second["toe_retreat_m"]
     assert first["energy_kj"] > 0 and 0 <= first["wheel_slip"] < 0.5
+    assert 0 < first["energy_scoop_kj"] < first["energy_kj"]  # the carry, dump and return spend the rest
     totals = two_cycles["totals"]
+    assert totals["energy_scoop_kj"] == pytest.approx(sum(c["energy_scoop_kj"] for c in two_cycles["cycles"]))
+    assert totals["energy_scoop_share"] == pytest.approx(totals["energy_scoop_kj"] / totals["energy_kj"])
     assert totals["delivered_t_per_h"] == pytest.approx(
         totals["delivered_kg"] / 1000 / (totals["shift_time_s"] / 3600))
     assert totals["energy_kj_per_t"] == pytest.approx(totals["energy_kj"] / (totals["delivered_kg"] / 1000))
@@ -296,3 +301,20 @@ def test_the_shift_command_films_the_first_shift(tmp_path):
     reader = imageio.get_reader(video)
     assert reader.count_frames() > 20
     assert reader.get_data(0).shape[:2] == (432, 768)
+
+
+def test_the_work_meter_splits_its_sum_by_actuator_and_counts_no_braking():
+    """The meter's per-actuator sums add up to its total; a loader driving and lifting does positive work at the
+    wheels and the lift, and nothing counts negative."""
+    env = make_scoop_env(ScoopConfig().with_overrides({"pile.variants": 2}))
+    env.reset(seed=0)
+    sim = env.unwrapped.sim
+    meter = WorkMeter(sim.model, sim.data)
+    sim.add_substep_observer(meter)
+    for _ in range(4):
+        env.step(np.array([1.0, -1.0, 0.0]))
+    sim.remove_substep_observer(meter)
+    by_actuator = dict(zip(ACTUATORS, meter.positive_work_by_actuator_j, strict=True))
+    assert meter.positive_work_j == pytest.approx(sum(by_actuator.values()))
+    assert all(work >= 0.0 for work in by_actuator.values())
+    assert by_actuator["lift"] > 0.0 and sum(by_actuator[name] for name in WHEELS) > 0.0

@@ -304,6 +304,9 @@ class RewardConfig(ConfigModel):
     c_overload_step: float = setting(0.0, "-", "each step costs c_overload_step * (w - scoop.overload_fill) for "
                                      "mass in the bucket above an overload (an overload is cheapest to shed "
                                      "while the bucket is still at the pile; 0: off, the paper's reward)", 0.0, 1000.0)
+    c_energy: float = setting(0.0, "1/J", "each control period costs c_energy per joule of the actuators' positive "
+                              "mechanical work in it (wheels, lift and tilt; what a shift reports as energy per "
+                              "tonne; 0: off, the paper's reward)", 0.0, 10.0)
     c_time: float = setting(0.0, "-", "each control period costs c_time (the progress term pays up to 1 a "
                             "period, so hovering short of the terminal point pays nearly as much as reaching it "
                             "late; c_time 1 makes every period cost; 0: off, the paper's reward)", 0.0, 10.0)

@@ -31,6 +31,9 @@ costs a second of the cycle and the energy of the lift.
 w_v = ``scoop.overload_fill`` in the bucket, what evaluation counts as an overload (the term
 ``reward_overload_step``): an overload is cheapest to shed at the pile, right after the cut, not short of
 the terminal point.
+``reward.c_energy`` > 0 costs c_energy * E_t at every step, E_t the actuators' positive mechanical work over the
+control period, J (force times velocity at the wheel motors and the lift and tilt servos, braking counted zero;
+the term ``reward_energy``): a scoop that winds up, or flips its servos, spends energy a shift pays for per tonne.
 ``reward.c_time`` > 0 costs c_time at every step (the term ``reward_time``): P_t pays up to 1 a step, so
 with the time limit bootstrapped, lingering short of the terminal point (shaking particles out, say) and
 reaching it later pays about as much as reaching it now; with c_time = 1 no step pays, and the mass
@@ -63,7 +66,7 @@ def scoop_reward(tip_to_pile_m: float, tip_to_terminal_m: float, penetrating: bo
                  config: RewardConfig, volumetric_fill: float = 0.0,
                  chassis_pitch_rad: float = 0.0, command_change: float = 0.0,
                  approach_height_m: float | None = None,
-                 overload_fill: float | None = None) -> tuple[float, dict[str, float]]:
+                 overload_fill: float | None = None, actuator_work_j: float = 0.0) -> tuple[float, dict[str, float]]:
     """Reward of one step and its terms.
 
     Args:
@@ -79,12 +82,13 @@ def scoop_reward(tip_to_pile_m: float, tip_to_terminal_m: float, penetrating: bo
             ``None`` once it has (``c_approach_height`` > 0).
         overload_fill: ``scoop.overload_fill``, the fill factor above which a load is an overload
             (``c_overload_step`` > 0).
+        actuator_work_j: the actuators' positive mechanical work over this control period, J (``c_energy`` > 0).
 
     Returns:
         (reward, {"reward_progress": P_t, "reward_mass": c_w * w_t or 0}, with "reward_pitch" where
         ``c_pitch`` > 0, "reward_action_change" where ``c_action_change`` > 0, "reward_approach_height"
-        where ``c_approach_height`` > 0, "reward_overload_step" where ``c_overload_step`` > 0 and "reward_time"
-        where ``c_time`` > 0); the terms sum to the reward.
+        where ``c_approach_height`` > 0, "reward_overload_step" where ``c_overload_step`` > 0, "reward_energy" where
+        ``c_energy`` > 0 and "reward_time" where ``c_time`` > 0); the terms sum to the reward.
     """
     distance = tip_to_terminal_m if penetrating else tip_to_pile_m
     progress = 1.0 - math.tanh(distance / config.distance_scale_m) ** 2
@@ -107,6 +111,10 @@ def scoop_reward(tip_to_pile_m: float, tip_to_terminal_m: float, penetrating: bo
         if overload_fill is None:
             raise ValueError("reward.c_overload_step needs the overload threshold (scoop.overload_fill)")
         terms["reward_overload_step"] = -config.c_overload_step * max(w - overload_fill, 0.0)
+    if config.c_energy:
+        if not math.isfinite(actuator_work_j) or actuator_work_j < 0.0:
+            raise ValueError(f"actuator_work_j must be a finite, non-negative number of joules, got {actuator_work_j}")
+        terms["reward_energy"] = -config.c_energy * actuator_work_j
     if config.c_time:
         terms["reward_time"] = -config.c_time
     return float(sum(terms.values())), terms

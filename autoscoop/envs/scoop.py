@@ -19,6 +19,7 @@ from autoscoop.core.state import CommandLimits, Measurements
 from autoscoop.sim.capacity import volumetric_fill
 from autoscoop.sim.load_cell import chassis_pitch_rad
 from autoscoop.sim.scene import ScoopSim
+from autoscoop.sim.work_meter import WorkMeter
 from autoscoop.sim.world import draw_world, scene_key, world_config
 
 
@@ -140,6 +141,7 @@ class ScoopEnv(gym.Env):
         self._noise_rng: np.random.Generator | None = None
         self._delay_steps = 0
         self._sensed: deque[Measurements] = deque(maxlen=1)
+        self._work_meters: dict[ScoopSim, WorkMeter] = {}  # per scene, attached where reward.c_energy > 0
 
     # ------------------------------------------------------------------ Gymnasium API
     def reset(self, *, seed: int | None = None, options: dict | None = None) -> tuple[np.ndarray, dict]:
@@ -206,6 +208,9 @@ class ScoopEnv(gym.Env):
             self._targets[1:], [self.sim.lift_setpoint_rad, self.sim.tilt_setpoint_rad], period,
             [cfg.robot.lift_speed_radps, cfg.robot.tilt_speed_radps])
         self.sim.command(self._targets[0], lift_rate, tilt_rate)
+        meter = self._work_meter() if cfg.reward.c_energy else None
+        if meter is not None:
+            meter.reset()
         # the readings the policy gets are sensor.delay_s old: taken that many physics steps before
         # the end of a control period (this one, or one still in the delay line)
         late = self._delay_steps % cfg.substeps
@@ -231,10 +236,19 @@ class ScoopEnv(gym.Env):
         reward, terms = scoop_reward(info["tip_to_pile_m"], info["tip_to_terminal_m"], info["penetrating"],
                                      float(np.float32(info["fill_factor"])), cfg.reward, info["volumetric_fill"],
                                      chassis_pitch_rad=pitch, command_change=change,
-                                     approach_height_m=approach_height, overload_fill=cfg.scoop.overload_fill)
+                                     approach_height_m=approach_height, overload_fill=cfg.scoop.overload_fill,
+                                     actuator_work_j=0.0 if meter is None else meter.positive_work_j)
         info.update(terms)
         terminated = info["reached"]  # the scoop ends at the terminal point, loaded or not
         return obs, float(reward), bool(terminated), False, info
+
+    def _work_meter(self) -> WorkMeter:
+        """The work meter of the scene in use (``reward.c_energy``), attached to it the first time it is asked for."""
+        meter = self._work_meters.get(self.sim)
+        if meter is None:
+            meter = self._work_meters[self.sim] = WorkMeter(self.sim.model, self.sim.data)
+            self.sim.add_substep_observer(meter)
+        return meter
 
     @property
     def commanded_targets(self) -> np.ndarray:

@@ -92,6 +92,7 @@ def run_shift(policy: Policy, config: ScoopConfig, cycles: int, seed: int = 0, p
             outcome = rollout(policy, env, seed * EPISODE_SEEDS_PER_SHIFT + k,
                               transition_observers=[lambda *t: last_obs.append(t[4])])
             start_s = float(sim.data.time) - sim.elapsed_s
+            scoop_work_j = meter.positive_work_j
             scooped = sim.particles_in_bucket()
             delivered_before = int(sim.delivered.sum())
             timed_out: list[str] = []
@@ -121,6 +122,7 @@ def run_shift(policy: Policy, config: ScoopConfig, cycles: int, seed: int = 0, p
                 "scoop_time_s": outcome.steps * world.env.control_period_s,
                 "cycle_time_s": cycle_s,
                 "energy_kj": meter.positive_work_j / 1000.0,
+                "energy_scoop_kj": scoop_work_j / 1000.0,
                 "wheel_travel_m": meter.wheel_travel_m,
                 "chassis_travel_m": meter.chassis_travel_m,
                 "wheel_slip": meter.slip,
@@ -198,6 +200,7 @@ def shift_totals(rows: list[dict[str, Any]]) -> dict[str, Any]:
     scooped = sum(r["mass_scooped_kg"] for r in rows)
     time_s = rows[-1]["shift_time_s"]
     energy = sum(r["energy_kj"] for r in rows)
+    energy_scoop = sum(r.get("energy_scoop_kj", math.nan) for r in rows)
     wheel = sum(r["wheel_travel_m"] for r in rows)
     chassis = sum(r["chassis_travel_m"] for r in rows)
     fills = [r["fill_factor"] for r in rows]
@@ -210,6 +213,8 @@ def shift_totals(rows: list[dict[str, Any]]) -> dict[str, Any]:
         "delivered_t_per_h": (delivered / 1000.0) / (time_s / 3600.0) if time_s > 0 else math.nan,
         "energy_kj": energy,
         "energy_kj_per_t": energy / (delivered / 1000.0) if delivered > 0 else math.nan,
+        "energy_scoop_kj": energy_scoop,
+        "energy_scoop_share": energy_scoop / energy if energy > 0 else math.nan,
         "spilled_on_way_kg": sum(r["spilled_on_way_kg"] for r in rows),
         "spillage_share": sum(r["spilled_on_way_kg"] for r in rows) / scooped if scooped > 0 else math.nan,
         "failed_scoop_share": float(np.mean([not r["scoop_success"] for r in rows])),

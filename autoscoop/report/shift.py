@@ -24,6 +24,7 @@ TOTAL_COLUMNS = (
     ("cycles", "cycles", 1),
     ("delivered_t_per_h", "delivered (t/h)", 4),
     ("energy_kj_per_t", "energy (kJ/t)", 1),
+    ("energy_scoop_share", "energy in the scoop (share)", 2),
     ("delivered_kg", "delivered (kg)", 1),
     ("shift_time_s", "shift time (s)", 0),
     ("fill_first5", "fill, first 5", 2),
@@ -50,7 +51,9 @@ DEFINITIONS = (
     "dump, counted once and taken away with the hopper",
     "t/h: delivered tonnes per hour of shift time (every cycle's scoop, carry, dump and return)",
     "energy: the actuators' positive mechanical work (force x velocity at the four wheel motors and the lift and "
-    "tilt servos, summed over physics steps; braking counts zero), per delivered tonne",
+    "tilt servos, summed over physics steps; braking counts zero), per delivered tonne; in the scoop: the share "
+    "of it spent from the scoop's start to its terminal point (the carry, dump and return are the same script for "
+    "every policy)",
     "fill factor: mass in the bucket at the scoop's end / rated load; volumetric fill: the particles' solid "
     "volume there / the bucket's capacity",
     "spilled on the way: particles in the bucket at the scoop's end that were neither delivered nor still in the "

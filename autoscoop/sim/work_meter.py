@@ -16,6 +16,7 @@ class WorkMeter:
     """Sums, after each physics step: the actuators' positive mechanical work (force times velocity at each
     actuator, negative power, braking, counted as zero: a hydraulic or electric drive does not recover it),
     the distance the wheels rolled and the distance the chassis travelled along its heading.
+    ``positive_work_by_actuator_j`` splits the work by actuator, in the order of :data:`ACTUATORS` (J).
 
     Args:
         model: the compiled scene.
@@ -33,13 +34,15 @@ class WorkMeter:
     def reset(self) -> None:
         """Start the sums from zero."""
         self.positive_work_j = 0.0
+        self.positive_work_by_actuator_j = np.zeros(len(ACTUATORS))
         self.wheel_travel_m = 0.0
         self.chassis_travel_m = 0.0
 
     def __call__(self) -> None:
         d, step = self.data, self.model.opt.timestep
-        power = d.actuator_force[self._actuators] * d.actuator_velocity[self._actuators]
-        self.positive_work_j += float(np.clip(power, 0.0, None).sum()) * step
+        power = np.clip(d.actuator_force[self._actuators] * d.actuator_velocity[self._actuators], 0.0, None) * step
+        self.positive_work_by_actuator_j += power
+        self.positive_work_j += float(power.sum())
         self.wheel_travel_m += abs(float(d.qvel[self._wheel_dofs].mean())) * WHEEL_RADIUS_M * step
         heading = d.xmat[self._chassis].reshape(3, 3)[:, 0]
         self.chassis_travel_m += abs(float(d.qvel[self._root_dof:self._root_dof + 3] @ heading)) * step
