@@ -95,7 +95,7 @@ def summary(outcomes: list) -> dict[str, float]:
             "volumetric": float(np.mean([o.volumetric_fill for o in outcomes])),
             "overload": float(np.mean([o.overloaded for o in outcomes])),
             "particles_mean": float(particles.mean()), "particles_std": float(particles.std()),
-            "cycle_s": float(np.mean(cycles)) if cycles else math.nan}
+            "cycle_s": float(np.mean(cycles)) if cycles else None}
 
 
 def load_arrival(policy: Any, config: ScoopConfig, episodes: int, seed: int) -> dict[str, float]:
@@ -161,7 +161,7 @@ def main() -> int:
             results.setdefault(threshold_text, {})[case.name] = row
             print(f"w from {threshold_text:>5} {case.name:>11}: success {row['success']:.2f} fill {row['fill']:.3f} "
                   f"vol {row['volumetric']:.3f} overload {row['overload']:.2f} particles "
-                  f"{row['particles_mean']:.1f} ± {row['particles_std']:.1f} cycle {row['cycle_s']:.2f}", flush=True)
+                  f"{row['particles_mean']:.1f} ± {row['particles_std']:.1f} cycle {row['cycle_s'] or math.nan:.2f}", flush=True)
     if args.json:
         write_json_atomically(args.json, {"policy": args.policy, "curl": args.curl, "stop_drive": args.stop_drive,
                                           "episodes": args.episodes, "seed": args.seed, "results": results})
