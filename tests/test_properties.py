@@ -301,6 +301,12 @@ class Oracle:
         self.taken[name] = max(taken, self.taken.get(name, -math.inf))
         self.bad.discard(name)
 
+    def healthy(self, now: float) -> bool:
+        """Every input present, good and fresh at ``now`` (a reading exactly the timeout old is still fresh: stale
+        is older than the timeout), and no e-stop."""
+        return not (self.estop or self.bad or set(self.taken) != set(SENSOR_INPUTS + FLOAT_INPUTS)) and all(
+            now - taken <= self.timeout_s for taken in self.taken.values())
+
     def fault_from(self, now: float) -> float:
         """From when, at or after ``now`` and until the next message, an input is stale or bad (inf: none)."""
         if self.estop or self.bad or set(self.taken) != set(SENSOR_INPUTS + FLOAT_INPUTS):
@@ -390,7 +396,7 @@ def simulate(steps: list[Step], timeout_s: float, max_future_s: float, seed: int
             stamp = None if message.name in FLOAT_INPUTS else _stamp(message, t, sent, timeout_s, max_future_s)
             _send(core, message, t, stamp)
             oracle.message(message.name, message.good, t, stamp)
-        if oracle.fault_from(t) > t:
+        if oracle.healthy(t):
             healthy_at[0] = t
         publish(t)
     return core, commands, faults
