@@ -31,6 +31,7 @@ from autoscoop.envs.rollout import rollout
 from autoscoop.envs.scoop import make_scoop_env
 from autoscoop.evaluation.evaluate import evaluate
 from autoscoop.evaluation.stress import select_cases
+from autoscoop.evaluation.summary import outcome_statistics
 
 FILL_INDEX = STATE_NAMES.index("w")
 TILT_ACTION = ACTION_NAMES.index("tilt")
@@ -87,15 +88,14 @@ class LoadShedder:
         return action
 
 
-def summary(outcomes: list) -> dict[str, float]:
-    particles = np.array([o.particles for o in outcomes], dtype=float)
-    cycles = [o.cycle_time_s for o in outcomes if o.cycle_time_s is not None]
-    return {"episodes": len(outcomes), "success": float(np.mean([o.success for o in outcomes])),
-            "fill": float(np.mean([o.fill_factor for o in outcomes])),
-            "volumetric": float(np.mean([o.volumetric_fill for o in outcomes])),
-            "overload": float(np.mean([o.overloaded for o in outcomes])),
-            "particles_mean": float(particles.mean()), "particles_std": float(particles.std()),
-            "cycle_s": float(np.mean(cycles)) if cycles else None}
+def summary(outcomes: list) -> dict[str, Any]:
+    """The figures this probe prints and keeps, from the project's own episode statistics."""
+    stats = outcome_statistics(o.as_dict() for o in outcomes)
+    cycle = stats["cycle_time_mean"]
+    return {"episodes": len(outcomes), "success": stats["success_rate"], "fill": stats["fill_factor_mean"],
+            "volumetric": stats["volumetric_fill_mean"], "overload": stats["overload_rate"],
+            "particles_mean": stats["particles_mean"], "particles_std": stats["particles_std"],
+            "cycle_s": None if math.isnan(cycle) else cycle}
 
 
 def load_arrival(policy: Any, config: ScoopConfig, episodes: int, seed: int) -> dict[str, float]:

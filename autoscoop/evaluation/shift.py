@@ -200,7 +200,7 @@ def shift_totals(rows: list[dict[str, Any]]) -> dict[str, Any]:
     scooped = sum(r["mass_scooped_kg"] for r in rows)
     time_s = rows[-1]["shift_time_s"]
     energy = sum(r["energy_kj"] for r in rows)
-    energy_scoop = sum(r.get("energy_scoop_kj", math.nan) for r in rows)
+    energy_scoop = sum(r["energy_scoop_kj"] for r in rows)
     wheel = sum(r["wheel_travel_m"] for r in rows)
     chassis = sum(r["chassis_travel_m"] for r in rows)
     fills = [r["fill_factor"] for r in rows]
