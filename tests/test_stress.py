@@ -7,6 +7,8 @@ import json
 import math
 import os
 
+import mujoco
+import numpy as np
 import pytest
 
 from autoscoop.agents.loading import load_policy
@@ -108,6 +110,8 @@ def test_the_command_writes_json_table_and_heat_map(tmp_path, capsys):
     data = json.loads(json_file.read_text())
     assert data["policy"] == "heuristic" and data["episodes"] == 2 and data["seeds"] == [3, 4]
     assert data["cpu_count"] == os.cpu_count() and data["wall_time_s"] > 0
+    # the libraries a figure can move with are named, read from what is installed
+    assert data["dependencies"]["mujoco"] == mujoco.__version__ and data["dependencies"]["numpy"] == np.__version__
     assert [row["case"] for row in data["rows"]] == ["nominal", "light"]  # the suite's order
     for row in data["rows"]:
         assert [e["seed"] for e in row["episodes_detail"]] == [3, 4]

@@ -9,7 +9,7 @@ import time
 
 from autoscoop.agents.loading import load_policy
 from autoscoop.commands import check_output_dir, check_output_file, config_from_args, options, write_json
-from autoscoop.core.version import __version__
+from autoscoop.core.version import __version__, dependency_versions
 from autoscoop.envs import worlds_help
 from autoscoop.evaluation.stress import case_names, run_stress, select_cases
 from autoscoop.report.stress import stress_table, verdict, write_stress_report
@@ -50,7 +50,7 @@ def run(args: argparse.Namespace) -> int:
     write_json(args.json, {
         "policy": args.policy, "episodes": args.episodes, "seeds": seeds, "workers": args.workers,
         "cpu_count": os.cpu_count(), "wall_time_s": wall_s, "all_passed": all(r.passed for r in rows),
-        "autoscoop_version": __version__, "config": config.to_dict(), "rows": [r.as_dict() for r in rows]})
+        "autoscoop_version": __version__, "dependencies": dependency_versions(), "config": config.to_dict(), "rows": [r.as_dict() for r in rows]})
     intro = (f"`{args.policy}`, {args.episodes} episodes per case (seeds {seeds[0]}–{seeds[-1]}), "
              f"{wall_s:.0f} s wall time on {os.cpu_count()} CPUs with {args.workers} worker(s).")
     files = write_stress_report(rows, args.out, title=f"Stress suite: {args.policy}", intro=intro)

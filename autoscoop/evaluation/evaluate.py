@@ -15,7 +15,7 @@ from tqdm import tqdm
 
 from autoscoop.core.config import ScoopConfig
 from autoscoop.core.policy import Policy
-from autoscoop.core.version import __version__
+from autoscoop.core.version import __version__, dependency_versions
 from autoscoop.envs.definitions import definition_lines
 from autoscoop.envs.outcome import EpisodeOutcome
 from autoscoop.envs.rollout import rollout
@@ -59,6 +59,7 @@ def summarize(results: list[EpisodeOutcome], config: ScoopConfig, policy_name: s
         **outcome_statistics(outcomes),
         "pile": {"angle_deg": config.pile.angle_deg, "n_particles": config.pile.n_particles},
         "autoscoop_version": __version__,
+        "dependencies": dependency_versions(),
         "config": config.to_dict(),
         "episodes_detail": outcomes,
     }

@@ -27,7 +27,7 @@ from autoscoop.core.shift_accounting import pile_profile
 from autoscoop.core.shift_checks import HOPPER_WALL_M
 from autoscoop.core.shift_script import HOPPER_PHASES, CarryDumpScript, Ranges, ScriptParams
 from autoscoop.core.state import CommandLimits
-from autoscoop.core.version import __version__
+from autoscoop.core.version import __version__, dependency_versions
 from autoscoop.envs.rollout import rollout
 from autoscoop.envs.shift import make_shift_env, shift_world_config
 from autoscoop.evaluation.shift_film import ShiftFilm
@@ -150,7 +150,8 @@ def run_shift(policy: Policy, config: ScoopConfig, cycles: int, seed: int = 0, p
             film.detach()
         env.close()
     return {"policy": policy.name, "seed": seed, "cycles": rows, "totals": shift_totals(rows),
-            "conditions": shift_conditions(world), "autoscoop_version": __version__}
+            "conditions": shift_conditions(world), "autoscoop_version": __version__,
+            "dependencies": dependency_versions()}
 
 
 def _carry_dump_return(env: Any, script: CarryDumpScript, state: np.ndarray, config: ScoopConfig) -> list[str]:

@@ -43,7 +43,7 @@ from autoscoop.agents.demonstrations import add_scripted_demonstrations
 from autoscoop.agents.policy_files import sha256_of
 from autoscoop.core.config import ScoopConfig, from_dict, save_yaml
 from autoscoop.core.safe_files import atomic_output, write_text_atomically
-from autoscoop.core.version import __version__
+from autoscoop.core.version import __version__, dependency_versions
 from autoscoop.training.callbacks import EpisodeLogger, Evaluation, PolicyEvaluator
 from autoscoop.training.checkpoints import (
     actor_meta,
@@ -168,7 +168,7 @@ def _start(args: TrainArgs, run_dir: Path, config: ScoopConfig, spec: dict[str, 
     info = {"algo": args.algo, "recipe": args.recipe, "seed": args.seed, "episodes": args.episodes,
             "n_envs": args.n_envs,
             "autoscoop_version": __version__, "command": args.command or " ".join(sys.argv),
-            "torch": torch.__version__,
+            "torch": torch.__version__, "dependencies": dependency_versions(),
             "checkpoint_every": args.checkpoint_every, "eval_every": args.eval_every,
             "eval_episodes": args.eval_episodes, "demo_episodes": demos,
             "state_frame": "level" if config.sensor.level_with_imu else "chassis",
