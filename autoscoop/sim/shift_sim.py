@@ -30,6 +30,11 @@ DELIVERED_PER_ROW = 40
 """Kept particles per row."""
 REACH_BEHIND_TOE_M = 0.6
 """How far behind the toe a scoop can move the pile (the bucket reaches about 0.4 m past it), m."""
+BACK_OFF_M = 0.6
+"""How far :meth:`ShiftSim.clear_for_next_scoop` sets the loader back from where its scoop ended while the pile
+settles, m."""
+BETWEEN_SCOOPS_S = 2.0
+"""How long the pile settles between two scoops of :meth:`ShiftSim.clear_for_next_scoop`, simulated s."""
 HELD_DAMPING_NS_M = 2000.0
 """Damping of the sliding motion of particles farther behind the toe than :data:`REACH_BEHIND_TOE_M`, N*s/m.
 
@@ -57,6 +62,8 @@ class ShiftSim(ScoopSim):
         self._particle_dofs = np.array([self.model.joint(f"particle_{i:03d}").dofadr[0]
                                         for i in range(self.n_particles)], dtype=int)
         self._free_damping = self.model.dof_damping[self._particle_dofs[:, None] + np.arange(3)].copy()
+        particle_bodies = {self.model.body(f"particle_{i:03d}").id for i in range(self.n_particles)}
+        self._loader_dofs = np.flatnonzero([body not in particle_bodies for body in self.model.dof_bodyid])
         self.start_shift()
 
     def compile_model(self, config: ScoopConfig) -> mujoco.MjModel:
@@ -80,6 +87,62 @@ class ShiftSim(ScoopSim):
             self.recentre_on_toe()
             self.restart_clock()
         self.hold_pile_out_of_reach()
+
+    @property
+    def continuing(self) -> bool:
+        """Whether the next :meth:`reset` keeps the pile as the last scoop left it (a shift has begun)."""
+        return self._continuing
+
+    def clear_for_next_scoop(self, rng: np.random.Generator, start_gap_m: float | None = None) -> bool:
+        """Between two scoops without the scripted carry (training on the changing pile): what the scoop lifted
+        leaves, the pile settles, and the loader stands at its start pose before the new toe, at rest.
+
+        The particles in the bucket, and any others off the pile and above the ground (heaped on the bucket, still
+        falling), are taken away as delivered. So is anything off the pile in front of the toe, which the loader
+        would otherwise be set down on (the shift's return pushes such particles along). The loader is set
+        :data:`BACK_OFF_M` back with its arm at the start pose while the pile settles for :data:`BETWEEN_SCOOPS_S`;
+        then the world is moved so that the toe is at x = 0, and the loader's tip is put ``start_gap_m``
+        (``robot.start_gap_m`` if ``None``, with up to ``robot.start_gap_jitter_m`` of jitter) short of it. The
+        episode clock restarts.
+
+        Args:
+            rng: draws the start gap's jitter.
+            start_gap_m: this scoop's start gap, m.
+
+        Returns:
+            False, with nothing changed past the first step, when no pile is left on the loader's path.
+        """
+        cfg, radius = self.config, self.config.pile.radius_m
+        positions = self.particle_positions
+        off_pile = ~self.delivered & ~self.pile_mask()
+        lifted = self.particles_in_bucket() | (off_pile & (positions[:, 2] > 2.0 * radius))
+        self._keep_delivered(np.flatnonzero(lifted & ~self.delivered))
+        lift, tilt = cfg.robot.start_lift_rad, cfg.robot.start_tilt_rad
+        self.set_pose(float(self.chassis_pose[0][0]) - BACK_OFF_M, lift, tilt)
+        self._stop_loader()
+        self.command(0.0, 0.0, 0.0)
+        mujoco.mj_forward(self.model, self.data)
+        self.step(int(round(BETWEEN_SCOOPS_S / self.model.opt.timestep)))
+        toe = self.toe_x_m()
+        if not np.isfinite(toe):
+            return False
+        self.recentre_on_toe()
+        positions = self.particle_positions
+        in_front = ~self.delivered & ~self.pile_mask() & (positions[:, 0] < 0.0)
+        self._keep_delivered(np.flatnonzero(in_front))
+        gap = cfg.robot.start_gap_m if start_gap_m is None else start_gap_m
+        jitter = cfg.robot.start_gap_jitter_m
+        gap += float(rng.uniform(-jitter, jitter)) if jitter > 0 else 0.0
+        self.set_pose(-gap - float(kinematics.arm_pose(lift, tilt).tip[0]), lift, tilt)
+        self._stop_loader()
+        mujoco.mj_forward(self.model, self.data)
+        self.hold_pile_out_of_reach()
+        self.restart_clock()
+        return True
+
+    def _stop_loader(self) -> None:
+        """Zero the velocities of the loader's joints (chassis, wheels, arm and bucket)."""
+        self.data.qvel[self._loader_dofs] = 0.0
 
     # ---------------------------------------------------------------- the pile
     def pile_mask(self) -> np.ndarray:
@@ -147,16 +210,20 @@ class ShiftSim(ScoopSim):
         """Count the particles in the hopper as delivered, keep them apart (the truck leaves with them) and park the
         hopper away from the pile; returns how many were delivered."""
         received = np.flatnonzero(self.particles_in_hopper())
-        radius = self.config.pile.radius_m
-        kept = int(self.delivered.sum())
-        for k, index in enumerate(received):
-            row, place = divmod(kept + k, DELIVERED_PER_ROW)
-            spacing = DELIVERED_SPACING_RADII * radius
-            self.set_particle(int(index), np.array([DELIVERED_X_M - spacing * place, DELIVERED_Y_M - spacing * row, radius]))
-        self.delivered[received] = True
+        self._keep_delivered(received)
         self.data.mocap_pos[self._hopper] = PARKED_POSITION_M
         mujoco.mj_forward(self.model, self.data)
         return len(received)
+
+    def _keep_delivered(self, indices: np.ndarray) -> None:
+        """Count particles ``indices`` as delivered and lay them, at rest, in the rows where delivered ones are kept."""
+        radius = self.config.pile.radius_m
+        spacing = DELIVERED_SPACING_RADII * radius
+        kept = int(self.delivered.sum())
+        for k, index in enumerate(indices):
+            row, place = divmod(kept + k, DELIVERED_PER_ROW)
+            self.set_particle(int(index), np.array([DELIVERED_X_M - spacing * place, DELIVERED_Y_M - spacing * row, radius]))
+        self.delivered[indices] = True
 
     def delivered_kept(self) -> np.ndarray:
         """(n,) particles lying, at rest on the ground, where delivered particles are kept."""

@@ -16,6 +16,7 @@ from autoscoop.core.state import ACTION_SIZE, checked_history_steps
 from autoscoop.envs.history import ActorInputObservation
 from autoscoop.envs.privileged import PrivilegedObservation
 from autoscoop.envs.scoop import make_scoop_env
+from autoscoop.envs.shift import make_repeated_pile_env
 
 
 def make_policy(algo: str, spec: dict[str, Any]) -> tuple[Any, dict[str, Any]]:
@@ -44,6 +45,20 @@ def history_steps(spec: dict[str, Any]) -> int:
     return checked_history_steps(spec.get("history_steps", 1), "the recipe")
 
 
+def repeated_pile_envs(spec: dict[str, Any], n_envs: int) -> int:
+    """The YAML's ``repeated_pile_envs``: how many of the ``n_envs`` simulators train on a shift's pile scooped
+    again and again (:class:`autoscoop.envs.shift.RepeatedPileEnv`) instead of the run's world (0 without the key).
+
+    Raises:
+        ValueError: a value that is not a whole number from 0 to ``n_envs``.
+    """
+    value = spec.get("repeated_pile_envs", 0)
+    if isinstance(value, bool) or not isinstance(value, int) or not 0 <= value <= n_envs:
+        raise ValueError(f"repeated_pile_envs = {value!r} in the recipe is out of range; allowed whole numbers in "
+                         f"[0, {n_envs}] (--n-envs {n_envs})")
+    return value
+
+
 def make_noise(spec: dict[str, Any], n_envs: int) -> Any:
     """The exploration noise the YAML's ``noise`` section names, at ``sigma_start``; ``None`` without one."""
     noise_spec = spec.get("noise")
@@ -64,21 +79,26 @@ def set_noise_scale(noise: Any, sigma: float) -> None:
             part._sigma = np.full(ACTION_SIZE, sigma)
 
 
-def make_training_env(config: ScoopConfig, privileged: bool = False, history: int = 1) -> Any:
+def make_training_env(config: ScoopConfig, privileged: bool = False, history: int = 1,
+                      repeated_pile: bool = False) -> Any:
     """One environment as training steps it: with ``history`` > 1 (the YAML's ``history_steps``) its
     observations are the actor's input of that many states and commands (:mod:`autoscoop.envs.history`);
     with ``privileged`` (the YAML's ``privileged_critic``) they carry the simulator's privileged numbers after
-    it (:mod:`autoscoop.envs.privileged`) for the critic, while the actor reads its input only."""
-    env = make_scoop_env(config)
+    it (:mod:`autoscoop.envs.privileged`) for the critic, while the actor reads its input only. With
+    ``repeated_pile`` it scoops a shift's pile again and again (:func:`autoscoop.envs.shift.make_repeated_pile_env`)
+    in ``config``'s world without its randomisation."""
+    env = make_repeated_pile_env(config) if repeated_pile else make_scoop_env(config)
     if history > 1:
         env = ActorInputObservation(env, history)
     return PrivilegedObservation(env) if privileged else env
 
 
-def make_vec_env(config: ScoopConfig, n_envs: int, seed: int, privileged: bool = False, history: int = 1) -> Any:
+def make_vec_env(config: ScoopConfig, n_envs: int, seed: int, privileged: bool = False, history: int = 1,
+                 repeated_pile: int = 0) -> Any:
     """``n_envs`` training environments (:func:`make_training_env`; in subprocesses when more than one),
-    seeded from ``seed``."""
-    factories = [partial(make_training_env, config, privileged, history) for _ in range(n_envs)]
+    seeded from ``seed``; the last ``repeated_pile`` of them on a shift's pile scooped again and again."""
+    factories = [partial(make_training_env, config, privileged, history, index >= n_envs - repeated_pile)
+                 for index in range(n_envs)]
     vec = SubprocVecEnv(factories, start_method="fork") if n_envs > 1 else DummyVecEnv(factories)
     vec.seed(seed)
     return vec

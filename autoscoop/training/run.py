@@ -60,7 +60,14 @@ from autoscoop.training.checkpoints import (
     save_safe_actor,
     write_run_json,
 )
-from autoscoop.training.factories import history_steps, make_noise, make_policy, make_training_env, make_vec_env
+from autoscoop.training.factories import (
+    history_steps,
+    make_noise,
+    make_policy,
+    make_training_env,
+    make_vec_env,
+    repeated_pile_envs,
+)
 from autoscoop.training.hyper_ranges import check_training_settings
 from autoscoop.training.learning_curve import plot_learning_curve
 from autoscoop.training.recipes import DEFAULT_EPISODES, SHIPPED_RECIPE
@@ -145,6 +152,7 @@ def train(args: TrainArgs) -> Path:
     config_at(config, spec, args.episodes)  # a curriculum's stages are checked before anything starts
     check_training_settings(spec, args.n_envs)
     history_steps(spec)  # a bad history is refused before a run directory is made
+    repeated_pile_envs(spec, args.n_envs)
     init_path = init_source(args.init_from, args.algo, args.trust) if args.init_from else None
     run_dir = Path(args.out) if args.out else _default_run_dir(args)
     created = not run_dir.exists()
@@ -214,7 +222,7 @@ def _continue(run_dir: Path, progress: bool, on_evaluation: Callable[[Evaluation
     checkpoint, state = found
     done = state["episodes_done"]
     env = make_vec_env(config_at(config, spec, done), info["n_envs"], info["seed"] + done, privileged_critic(spec),
-                       history_steps(spec))
+                       history_steps(spec), repeated_pile_envs(spec, info["n_envs"]))
     model = _build_model(run_dir, env, spec, info, seed=info["seed"] + done)
     try:
         load_checkpoint(model, checkpoint, state)
@@ -251,7 +259,8 @@ def _build_model(run_dir: Path, env: Any, spec: dict[str, Any], info: dict[str, 
 def _new_model(run_dir: Path, config: ScoopConfig, spec: dict[str, Any], info: dict[str, Any],
                trust: bool = False) -> Any:
     """A fresh model on new environments: the initial run's weights when fine-tuning, demonstrations when asked."""
-    env = make_vec_env(config, info["n_envs"], info["seed"], privileged_critic(spec), history_steps(spec))
+    env = make_vec_env(config, info["n_envs"], info["seed"], privileged_critic(spec), history_steps(spec),
+                       repeated_pile_envs(spec, info["n_envs"]))
     try:
         model = _build_model(run_dir, env, spec, info, seed=info["seed"])
         if info.get("init_from"):
