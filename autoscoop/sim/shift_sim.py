@@ -110,7 +110,8 @@ class ShiftSim(ScoopSim):
             start_gap_m: this scoop's start gap, m.
 
         Returns:
-            False, with nothing changed past the first step, when no pile is left on the loader's path.
+            Whether a pile is left on the loader's path after the settling; when none is, the world is not moved
+            and the loader stays set back (start a fresh pile).
         """
         cfg, radius = self.config, self.config.pile.radius_m
         positions = self.particle_positions
