@@ -249,9 +249,7 @@ class ScoopSim:
         (scooped once before: ``prescoop_particles`` taken), return the state."""
         m, d, cfg = self.model, self.data, self.config
         mujoco.mj_resetData(m, d)
-        lift, tilt = cfg.robot.start_lift_rad, cfg.robot.start_tilt_rad
-        tip_x_chassis = kinematics.arm_pose(lift, tilt).tip[0]
-        self.set_pose(-cfg.robot.start_gap_m - tip_x_chassis, lift, tilt)
+        self.set_start_pose(cfg.robot.start_gap_m)
         centres = pile_layout(pile, np.random.default_rng([variant, 20211]))
         for index, centre in enumerate(centres):
             self._place_particle(index, centre)
@@ -333,6 +331,12 @@ class ScoopSim:
         d.qpos[self._tilt_qpos] = tilt_rad
         d.act[self._lift_act_state] = lift_rad
         d.act[self._tilt_act_state] = tilt_rad
+
+    def set_start_pose(self, start_gap_m: float) -> None:
+        """Place the robot at its start pose (``robot.start_lift_rad``, ``robot.start_tilt_rad``) with its tip
+        ``start_gap_m`` before the pile's toe at x = 0 (:meth:`set_pose`: positions only)."""
+        lift, tilt = self.config.robot.start_lift_rad, self.config.robot.start_tilt_rad
+        self.set_pose(-start_gap_m - float(kinematics.arm_pose(lift, tilt).tip[0]), lift, tilt)
 
     def add_substep_observer(self, observer: Callable[[], None]) -> None:
         """Call ``observer()`` after every physics step from now on (a load cell averaging its readings,

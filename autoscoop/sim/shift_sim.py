@@ -93,7 +93,7 @@ class ShiftSim(ScoopSim):
         """Whether the next :meth:`reset` keeps the pile as the last scoop left it (a shift has begun)."""
         return self._continuing
 
-    def clear_for_next_scoop(self, rng: np.random.Generator, start_gap_m: float | None = None) -> bool:
+    def clear_for_next_scoop(self, rng: np.random.Generator) -> bool:
         """Between two scoops without the scripted carry (training on the changing pile): what the scoop lifted
         leaves, the pile settles, and the loader stands at its start pose before the new toe, at rest.
 
@@ -101,13 +101,11 @@ class ShiftSim(ScoopSim):
         falling), are taken away as delivered. So is anything off the pile in front of the toe, which the loader
         would otherwise be set down on (the shift's return pushes such particles along). The loader is set
         :data:`BACK_OFF_M` back with its arm at the start pose while the pile settles for :data:`BETWEEN_SCOOPS_S`;
-        then the world is moved so that the toe is at x = 0, and the loader's tip is put ``start_gap_m``
-        (``robot.start_gap_m`` if ``None``, with up to ``robot.start_gap_jitter_m`` of jitter) short of it. The
-        episode clock restarts.
+        then the world is moved so that the toe is at x = 0, and the loader's tip is put ``robot.start_gap_m``
+        (with up to ``robot.start_gap_jitter_m`` of jitter) short of it. The episode clock restarts.
 
         Args:
             rng: draws the start gap's jitter.
-            start_gap_m: this scoop's start gap, m.
 
         Returns:
             Whether a pile is left on the loader's path after the settling; when none is, the world is not moved
@@ -131,10 +129,8 @@ class ShiftSim(ScoopSim):
         positions = self.particle_positions
         in_front = ~self.delivered & ~self.pile_mask() & (positions[:, 0] < 0.0)
         self._keep_delivered(np.flatnonzero(in_front))
-        gap = cfg.robot.start_gap_m if start_gap_m is None else start_gap_m
         jitter = cfg.robot.start_gap_jitter_m
-        gap += float(rng.uniform(-jitter, jitter)) if jitter > 0 else 0.0
-        self.set_pose(-gap - float(kinematics.arm_pose(lift, tilt).tip[0]), lift, tilt)
+        self.set_start_pose(cfg.robot.start_gap_m + (float(rng.uniform(-jitter, jitter)) if jitter > 0 else 0.0))
         self._stop_loader()
         mujoco.mj_forward(self.model, self.data)
         self.hold_pile_out_of_reach()
