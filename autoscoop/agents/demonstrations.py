@@ -25,7 +25,8 @@ DEMONSTRATION_SEED = 900_000
 
 def add_scripted_demonstrations(replay_buffer: Any, config: ScoopConfig, episodes: int,
                                 seed: int = DEMONSTRATION_SEED,
-                                make_env: Callable[[ScoopConfig], gym.Env] = make_scoop_env) -> int:
+                                make_env: Callable[[ScoopConfig], gym.Env] = make_scoop_env,
+                                time_limit_ends_return: bool = False) -> int:
     """Run ``episodes`` scripted episodes and add every transition to ``replay_buffer``.
 
     Args:
@@ -35,10 +36,13 @@ def add_scripted_demonstrations(replay_buffer: Any, config: ScoopConfig, episode
         seed: seed of the first episode; the others follow.
         make_env: builds the environment from the config: the one training steps (its observations are
             the replay buffer's; the heuristic reads the state at their start).
+        time_limit_ends_return: store time-limit ends as done, as a buffer that does not bootstrap them
+            (``handle_timeout_termination=False``) stores the learner's own.
 
     Returns:
         The number of transitions added (a last remainder short of ``n_envs`` is left out).
-        Time-limit ends are stored as not done, so the learner bootstraps them as it does its own.
+        Time-limit ends are stored as not done (unless ``time_limit_ends_return``), so the learner treats them
+        as it does its own.
     """
     if episodes < 0:
         raise ValueError(f"demonstration episodes = {episodes}; must be >= 0")
@@ -52,7 +56,7 @@ def add_scripted_demonstrations(replay_buffer: Any, config: ScoopConfig, episode
     def collect(step: int, obs: np.ndarray, action: np.ndarray, reward: float, next_obs: np.ndarray,
                 terminated: bool, truncated: bool, info: dict[str, Any]) -> None:
         nonlocal pending, added
-        pending.append((obs, next_obs, action, reward, terminated))
+        pending.append((obs, next_obs, action, reward, terminated or (truncated and time_limit_ends_return)))
         if len(pending) == n_envs:
             _add(replay_buffer, pending)
             added += n_envs

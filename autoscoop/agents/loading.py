@@ -104,17 +104,26 @@ def refuse_untrusted_zip(path: Path, trust: bool, option: str = "--policy") -> N
 
 
 class SB3Policy:
-    """A :class:`Policy` around a Stable-Baselines3 model (deterministic actions)."""
+    """A :class:`Policy` around a Stable-Baselines3 model (deterministic actions); with ``target``, DDPG's or
+    TD3's target actor (the Polyak average of the actor's weights) acts instead of the actor."""
 
-    def __init__(self, model: object, name: str) -> None:
-        self.model, self.name = model, name
+    def __init__(self, model: object, name: str, target: bool = False) -> None:
+        self.model, self.name, self.target = model, name, target
 
     def reset(self) -> None:
         """SB3 policies here are stateless."""
 
     def act(self, observation):
-        action, _ = self.model.predict(observation, deterministic=True)
-        return action
+        if not self.target:
+            action, _ = self.model.predict(observation, deterministic=True)
+            return action
+        import torch  # noqa: PLC0415 - torch only where a model is
+
+        policy = self.model.policy
+        tensor, _ = policy.obs_to_tensor(observation)
+        with torch.no_grad():  # as SB3's predict does for the actor: squashed to [-1, 1], then to the action space
+            action = policy.actor_target(tensor).cpu().numpy().reshape(policy.action_space.shape)
+        return policy.unscale_action(action) if policy.squash_output else action
 
 
 def _load_sb3_zip(path: Path, trust: bool) -> Policy:

@@ -162,11 +162,22 @@ class ActorPolicy:
         return action
 
 
-def actor_from_sb3(model: Any) -> PaperActor:
-    """Copy the deterministic actor of an SB3 model trained with the paper's policies into a PaperActor."""
+def actor_from_sb3(model: Any, target: bool = False) -> PaperActor:
+    """Copy the deterministic actor of an SB3 model trained with the paper's policies into a PaperActor.
+
+    With ``target``, DDPG's and TD3's target actor instead: the Polyak average of the actor's weights that
+    the critic's targets use (each gradient step moves it ``tau`` of the way to the actor).
+
+    Raises:
+        PolicyFileError: the model has no such actor (PPO; SAC has no target actor).
+    """
     from autoscoop.agents.sb3_policies import PaperActorSB3  # noqa: PLC0415
 
     sb3_actor = getattr(model.policy, "actor", None)  # PPO's ActorCriticPolicy has none
+    if target:
+        sb3_actor = getattr(model.policy, "actor_target", None)
+        if not isinstance(sb3_actor, PaperActorSB3):
+            raise PolicyFileError(f"a {type(model).__name__} model has no target actor of the paper's policy")
     if isinstance(sb3_actor, PaperActorSB3):  # DDPG, TD3: mu = Sequential(body, head, tanh)
         body, head = sb3_actor.mu[0], sb3_actor.mu[1]
     elif hasattr(sb3_actor, "latent_pi") and hasattr(sb3_actor, "mu"):  # SAC with the paper's body

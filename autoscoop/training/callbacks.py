@@ -204,14 +204,16 @@ class PolicyEvaluator:
         make_env: builds the evaluation environment from a config: the environment training steps
             (the model's observations; an asymmetric critic's carry privileged numbers).
         observers: called with each :class:`Evaluation`, in order, once its files are written.
+        target_actor: evaluate, save and keep the model's target actor (the YAML's ``keep_target_actor``).
     """
 
     SEED = 10_000
 
     def __init__(self, run_dir: Path, config: ScoopConfig, every: int, episodes: int, info: dict[str, Any],
                  done: int = 0, make_env: Callable[[ScoopConfig], Any] = make_scoop_env,
-                 observers: Sequence[EvaluationObserver] = ()) -> None:
+                 observers: Sequence[EvaluationObserver] = (), target_actor: bool = False) -> None:
         self.run_dir, self.every, self.episodes, self.info, self.done = run_dir, every, episodes, info, done
+        self.target_actor = target_actor
         self.observers = list(observers)
         self.make_env = make_env
         self.env = make_env(config)
@@ -232,7 +234,7 @@ class PolicyEvaluator:
 
     def evaluate(self, model: Any, episode: int, logger: Any) -> float:
         """Run the evaluation; save the policy if it is the best so far; return its score."""
-        policy = SB3Policy(model, name="training")
+        policy = SB3Policy(model, name="training", target=self.target_actor)
         results = [rollout(policy, self.env, self.SEED + i) for i in range(self.episodes)]
         fills = [r.fill_factor for r in results]
         successes = [r.success for r in results]
@@ -249,12 +251,13 @@ class PolicyEvaluator:
         # every evaluated actor stays (80 kB each): a policy judged on more episodes later can be picked
         meta = {**actor_meta(self.info, self.run_dir), "selected_at_episode": episode}
         actor = self.run_dir / "evaluated" / f"episode_{episode:05d}.safetensors"
-        saved = save_safe_actor(model, actor, {**meta, "evaluation_delivered_fill": score})
+        saved = save_safe_actor(model, actor, {**meta, "evaluation_delivered_fill": score}, target=self.target_actor)
         if score > self.best:
             self.best = score
             with atomic_output(self.run_dir / "policy.zip") as tmp:
                 model.save(tmp)
-            save_safe_actor(model, self.run_dir / "policy.safetensors", {**meta, "selection_score_delivered_fill": score})
+            save_safe_actor(model, self.run_dir / "policy.safetensors", {**meta, "selection_score_delivered_fill": score},
+                            target=self.target_actor)
             self.info.update(best_score=score, best_episode=episode)
         evaluation = Evaluation(episode=episode, delivered_fill=score, fill_factor=row["fill_factor"],
                                 success=row["success"], cycle_time_s=row["cycle_time_s"], best_score=self.best,

@@ -34,17 +34,18 @@ from autoscoop.core.version import __version__
 from autoscoop.training.model_state import BUFFER_FILE, TENSORS_FILE, load_model_state, save_model_state
 
 
-def save_safe_actor(model: Any, path: Path, metadata: dict[str, Any]) -> bool:
-    """Write the model's actor in the safe format; ``False`` (nothing written) where that format cannot hold it.
+def save_safe_actor(model: Any, path: Path, metadata: dict[str, Any], target: bool = False) -> bool:
+    """Write the model's actor (with ``target``, its target actor) in the safe format; ``False`` (nothing
+    written) where that format cannot hold it.
 
     The safe format holds the paper's deterministic actor (DDPG, TD3, SAC's mean); PPO's Gaussian
     policy is kept in ``policy.zip`` only, which its run directory vouches for.
     """
     try:
-        actor = actor_from_sb3(model)
+        actor = actor_from_sb3(model, target=target)
     except PolicyFileError:
         return False
-    save_actor(actor, path, metadata)
+    save_actor(actor, path, {**metadata, "target_actor": True} if target else metadata)
     return True
 
 

@@ -45,6 +45,46 @@ def history_steps(spec: dict[str, Any]) -> int:
     return checked_history_steps(spec.get("history_steps", 1), "the recipe")
 
 
+def time_limit_ends_return(spec: dict[str, Any]) -> bool:
+    """The YAML's ``time_limit_ends_return`` (false without the key): a scoop cut off by the time limit is stored
+    in the replay buffer as ended, so the critic's return stops there instead of being carried on by its own
+    estimate of the next state. Only for a privileged critic, which reads the time used: to a critic that knows
+    the clock, the time limit is part of the task, and a scoop short of the terminal point when it runs out
+    has lost the bonus.
+
+    Raises:
+        ValueError: a value that is not true or false, or true without ``privileged_critic``.
+    """
+    value = spec.get("time_limit_ends_return", False)
+    if not isinstance(value, bool):
+        raise ValueError(f"time_limit_ends_return = {value!r} in the recipe must be true or false")
+    if value and not spec.get("privileged_critic", False):
+        raise ValueError("time_limit_ends_return needs privileged_critic: true (only that critic reads the time used)")
+    return value
+
+
+def keep_target_actor(spec: dict[str, Any]) -> bool:
+    """The YAML's ``keep_target_actor`` (false without the key): the run evaluates, keeps and exports DDPG's or
+    TD3's target actor, the Polyak average of the actor's weights (each gradient step moves it ``tau`` of the way,
+    so it averages the last few hundred updates), instead of the actor it trails.
+
+    Raises:
+        ValueError: a value that is not true or false, or true for an algorithm without a target actor.
+    """
+    value = spec.get("keep_target_actor", False)
+    if not isinstance(value, bool):
+        raise ValueError(f"keep_target_actor = {value!r} in the recipe must be true or false")
+    if value and spec.get("algo") not in ("ddpg", "td3"):
+        raise ValueError(f"keep_target_actor needs ddpg or td3 (a target actor); this run trains {spec.get('algo')!r}")
+    return value
+
+
+def replay_buffer_settings(spec: dict[str, Any]) -> dict[str, Any]:
+    """The keyword arguments of the off-policy learner's replay buffer (SB3's ``replay_buffer_kwargs``) that the
+    YAML asks for: ``handle_timeout_termination`` off with ``time_limit_ends_return``, nothing otherwise."""
+    return {"handle_timeout_termination": False} if time_limit_ends_return(spec) else {}
+
+
 def repeated_pile_envs(spec: dict[str, Any], n_envs: int) -> int:
     """The YAML's ``repeated_pile_envs``: how many of the ``n_envs`` simulators train on a shift's pile scooped
     again and again (:class:`autoscoop.envs.shift.RepeatedPileEnv`) instead of the run's world (0 without the key).

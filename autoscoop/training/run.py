@@ -62,11 +62,14 @@ from autoscoop.training.checkpoints import (
 )
 from autoscoop.training.factories import (
     history_steps,
+    keep_target_actor,
     make_noise,
     make_policy,
     make_training_env,
     make_vec_env,
     repeated_pile_envs,
+    replay_buffer_settings,
+    time_limit_ends_return,
 )
 from autoscoop.training.hyper_ranges import check_training_settings
 from autoscoop.training.learning_curve import plot_learning_curve
@@ -153,6 +156,8 @@ def train(args: TrainArgs) -> Path:
     check_training_settings(spec, args.n_envs)
     history_steps(spec)  # a bad history is refused before a run directory is made
     repeated_pile_envs(spec, args.n_envs)
+    time_limit_ends_return(spec)
+    keep_target_actor(spec)
     init_path = init_source(args.init_from, args.algo, args.trust) if args.init_from else None
     run_dir = Path(args.out) if args.out else _default_run_dir(args)
     created = not run_dir.exists()
@@ -252,6 +257,8 @@ def _build_model(run_dir: Path, env: Any, spec: dict[str, Any], info: dict[str, 
     algo_cls = ALGORITHMS[info["algo"]]
     if algo_cls in (DDPG, TD3):
         kwargs["action_noise"] = make_noise(spec, info["n_envs"])
+    if buffer_settings := replay_buffer_settings(spec):
+        kwargs["replay_buffer_kwargs"] = buffer_settings
     return algo_cls(policy, env, seed=seed, device="cpu", tensorboard_log=str(run_dir / "tb"),
                     policy_kwargs=policy_kwargs or None, verbose=0, **kwargs)
 
@@ -268,7 +275,8 @@ def _new_model(run_dir: Path, config: ScoopConfig, spec: dict[str, Any], info: d
         if info.get("demo_episodes"):
             added = add_scripted_demonstrations(model.replay_buffer, config, info["demo_episodes"],
                                                 make_env=partial(make_training_env, privileged=privileged_critic(spec),
-                                                                 history=history_steps(spec)))
+                                                                 history=history_steps(spec)),
+                                                time_limit_ends_return=time_limit_ends_return(spec))
             print(f"replay buffer: {added} transitions of {info['demo_episodes']} scripted scoops", file=sys.stderr)
     except BaseException:
         env.close()
@@ -289,8 +297,8 @@ def _run(run_dir: Path, config: ScoopConfig, spec: dict[str, Any], info: dict[st
                                 info.get("eval_episodes", 10), info, done=evaluations_done,
                                 make_env=partial(make_training_env, privileged=privileged_critic(spec),
                                                  history=history_steps(spec)),
-                                observers=[on_evaluation] if on_evaluation else ()
-                                ) if info.get("eval_every", 50) > 0 else None
+                                observers=[on_evaluation] if on_evaluation else (),
+                                target_actor=keep_target_actor(spec)) if info.get("eval_every", 50) > 0 else None
     worlds = {episode: config_at(config, spec, episode) for episode, _ in curriculum_stages(spec) if episode > done}
     logger = EpisodeLogger(run_dir, episodes, done, info, spec, info["checkpoint_every"], progress, evaluator,
                            config.env.control_period_s, evaluate_at_start=bool(info.get("init_from")) and done == 0,
@@ -305,11 +313,12 @@ def _run(run_dir: Path, config: ScoopConfig, spec: dict[str, Any], info: dict[st
             evaluator.close()
         info["wall_s"] = round(logger.wall_s(), 1)
         write_run_json(run_dir, info)
-    save_safe_actor(model, run_dir / "last.safetensors", actor_meta(info, run_dir))
+    target = keep_target_actor(spec)
+    save_safe_actor(model, run_dir / "last.safetensors", actor_meta(info, run_dir), target=target)
     if not (run_dir / "policy.zip").exists():  # no evaluation ran: the last policy is the policy
         with atomic_output(run_dir / "policy.zip") as tmp:
             model.save(tmp)
-        save_safe_actor(model, run_dir / "policy.safetensors", actor_meta(info, run_dir))
+        save_safe_actor(model, run_dir / "policy.safetensors", actor_meta(info, run_dir), target=target)
     info.update(status="finished", policy_zip_sha256=sha256_of(run_dir / "policy.zip"))
     write_run_json(run_dir, info)
     remove_checkpoints(run_dir)
