@@ -32,9 +32,8 @@ def main() -> None:
     model = algo.load(args.run / "policy.zip", device="cpu")
     metadata = {key: info[key] for key in SIDECAR_KEYS if key in info}
     args.out.mkdir(parents=True, exist_ok=True)
-    save_actor(actor_from_sb3(model), args.out / "online.safetensors", {**metadata, "actor": "online"})
-    model.policy.actor.load_state_dict(model.policy.actor_target.state_dict())
-    save_actor(actor_from_sb3(model), args.out / "target.safetensors", {**metadata, "actor": "target"})
+    save_actor(actor_from_sb3(model), args.out / "online.safetensors", metadata)
+    save_actor(actor_from_sb3(model, target=True), args.out / "target.safetensors", {**metadata, "target_actor": True})
     print(f"wrote {args.out}/online.safetensors and target.safetensors")
 
 
