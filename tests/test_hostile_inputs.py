@@ -133,7 +133,7 @@ def _train_init_case(algo: str) -> Case:
 
 
 CASES: list[Case] = [_trust_case(command, target) for command in POLICY_COMMANDS for target in ("dir", "zip")]
-CASES += [_train_init_case(algo) for algo in ("ddpg", "td3", "sac", "ppo")]
+CASES += [_train_init_case(algo) for algo in ("ddpg", "td3", "sac", "tqc", "ppo")]
 
 
 # ----------------------------------------------------------------------------------------- YAML files

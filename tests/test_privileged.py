@@ -41,17 +41,20 @@ def test_observation_is_the_state_then_the_privileged_numbers():
     assert named["time_used"] == pytest.approx(info["elapsed_s"] / config.env.max_episode_s, rel=1e-6)
 
 
-@pytest.mark.parametrize("algo", ["ddpg", "sac"])
+@pytest.mark.parametrize("algo", ["ddpg", "sac", "tqc"])
 def test_the_actor_reads_the_state_and_the_critic_everything(algo):
+    from sb3_contrib import TQC
     from stable_baselines3 import DDPG, SAC
 
     from autoscoop.agents.policy_files import actor_from_sb3
-    from autoscoop.agents.sb3_policies import PaperPolicy, PaperSACPolicy
+    from autoscoop.agents.sb3_policies import PaperPolicy, PaperSACPolicy, PaperTQCPolicy
 
     env = PrivilegedObservation(make_scoop_env(ScoopConfig().with_overrides(SMALL)))
-    model = (DDPG(PaperPolicy, env, buffer_size=100) if algo == "ddpg" else SAC(PaperSACPolicy, env, buffer_size=100))
+    algo_cls, policy = {"ddpg": (DDPG, PaperPolicy), "sac": (SAC, PaperSACPolicy), "tqc": (TQC, PaperTQCPolicy)}[algo]
+    model = algo_cls(policy, env, buffer_size=100)
     critic = model.policy.critic
-    assert linear_sizes(critic)[0] == (STATE_SIZE + PRIVILEGED_SIZE, 100)
+    merged_later = 0 if algo == "tqc" else 3  # the paper's critic merges the action after its first layer, TQC's at once
+    assert linear_sizes(critic)[0] == (STATE_SIZE + PRIVILEGED_SIZE + 3 - merged_later, 100)
     obs = torch.as_tensor(np.random.default_rng(0).normal(size=(4, STATE_SIZE + PRIVILEGED_SIZE)).astype(np.float32))
     other = obs.clone()
     other[:, STATE_SIZE:] += 5.0  # the privileged part changes the critic's value, never the actor's action
@@ -59,7 +62,9 @@ def test_the_actor_reads_the_state_and_the_critic_everything(algo):
         action = model.policy.actor(obs) if algo == "ddpg" else model.policy.actor(obs, deterministic=True)
         action_other = model.policy.actor(other) if algo == "ddpg" else model.policy.actor(other, deterministic=True)
         assert torch.equal(action, action_other)
-        assert not torch.allclose(critic(obs, action)[0], critic(other, action)[0])
+        value, value_other = critic(obs, action), critic(other, action)
+        first = (value[0], value_other[0]) if isinstance(value, tuple) else (value, value_other)  # TQC: one tensor
+        assert not torch.allclose(*first)
         exported = actor_from_sb3(model)  # the shipped actor: the state's 12 numbers in
         assert linear_sizes(exported)[0] == (STATE_SIZE, 100)
         assert torch.allclose(exported(obs[:, :STATE_SIZE]), action, atol=1e-6)

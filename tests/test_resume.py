@@ -153,7 +153,7 @@ def one_thread():
     torch.set_num_threads(threads)
 
 
-@pytest.mark.parametrize("algo", ["ddpg", "td3", "sac", "ppo"])
+@pytest.mark.parametrize("algo", ["ddpg", "td3", "sac", "tqc", "ppo"])
 def test_model_state_round_trips_through_safetensors_npz_and_json(algo, tmp_path, one_thread):
     trained = _small_model(algo, seed=0)
     trained.learn(64)
@@ -173,7 +173,7 @@ def test_model_state_round_trips_through_safetensors_npz_and_json(algo, tmp_path
             assert value == got[key], key
     for name in ("num_timesteps", "_n_updates", "_episode_num", "_current_progress_remaining"):
         assert getattr(fresh, name) == getattr(trained, name) and (name != "_n_updates" or trained._n_updates > 0)
-    if algo == "sac":
+    if algo in ("sac", "tqc"):
         assert torch.equal(fresh.log_ent_coef, trained.log_ent_coef)
     if algo != "ppo":
         old, new = trained.replay_buffer, fresh.replay_buffer

@@ -24,7 +24,7 @@ def test_the_key_needs_an_algorithm_with_a_target_actor():
     assert keep_target_actor({"algo": "ddpg"}) is False
     assert keep_target_actor({"algo": "ddpg", "keep_target_actor": True}) is True
     assert keep_target_actor({"algo": "td3", "keep_target_actor": True}) is True
-    for algo in ("sac", "ppo"):
+    for algo in ("sac", "tqc", "ppo"):
         with pytest.raises(ValueError, match="keep_target_actor needs ddpg or td3"):
             keep_target_actor({"algo": algo, "keep_target_actor": True})
     with pytest.raises(ValueError, match="must be true or false"):

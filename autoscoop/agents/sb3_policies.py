@@ -1,4 +1,5 @@
-"""The paper's actor-critic as a Stable-Baselines3 policy for DDPG and TD3 (a policy subclass, not a fork)."""
+"""The paper's actor-critic as a Stable-Baselines3 policy for DDPG and TD3, SAC and sb3-contrib's TQC (policy
+subclasses, not forks)."""
 
 from __future__ import annotations
 
@@ -6,6 +7,9 @@ from typing import Any
 
 import gymnasium as gym
 import torch
+from sb3_contrib.tqc.policies import Actor as TQCActor
+from sb3_contrib.tqc.policies import Critic as TQCCritic
+from sb3_contrib.tqc.policies import TQCPolicy
 from stable_baselines3.common.policies import ContinuousCritic
 from stable_baselines3.common.torch_layers import BaseFeaturesExtractor
 from stable_baselines3.sac.policies import Actor as SACActor
@@ -149,3 +153,28 @@ class PaperSACPolicy(_PaperDefaults, SACPolicy):
     def make_actor(self, features_extractor: BaseFeaturesExtractor | None = None) -> PaperSACActor:
         actor_kwargs = self._update_features_extractor(self.actor_kwargs, self.actor_features(features_extractor))
         return PaperSACActor(**actor_kwargs).to(self.device)
+
+
+
+class PaperTQCActor(TQCActor):
+    """TQC's squashed-Gaussian actor with the paper's hidden layers (its mean action has the PaperActor's shape)."""
+
+    def __init__(self, *args: Any, **kwargs: Any) -> None:
+        super().__init__(*args, **kwargs)
+        self.latent_pi = paper_mlp(self.features_dim, self.net_arch)
+
+
+class PaperTQCPolicy(_PaperDefaults, TQCPolicy):
+    """sb3-contrib's TQCPolicy with the paper's hidden layers for the actor; its critics are TQC's own quantile
+    networks (``n_critics`` of them, ``n_quantiles`` outputs each), on the privileged features when the critic is
+    asymmetric."""
+
+    def make_actor(self, features_extractor: BaseFeaturesExtractor | None = None) -> PaperTQCActor:
+        actor_kwargs = self._update_features_extractor(self.actor_kwargs, self.actor_features(features_extractor))
+        return PaperTQCActor(**actor_kwargs).to(self.device)
+
+    def make_critic(self, features_extractor: BaseFeaturesExtractor | None = None) -> TQCCritic:
+        if is_privileged(self.observation_space, self.history_steps):  # the critic sees all; never the actor's
+            features_extractor = PrivilegedState(self.observation_space, self.history_steps)
+        critic_kwargs = self._update_features_extractor(self.critic_kwargs, features_extractor)
+        return TQCCritic(**critic_kwargs).to(self.device)

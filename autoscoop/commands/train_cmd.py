@@ -32,7 +32,7 @@ the settings in its ``config.yaml`` and ``hyperparams.yaml``."""
 def register(subparsers: argparse._SubParsersAction) -> None:
     parser = subparsers.add_parser("train", help="train a controller", description=__doc__,
                                    epilog=worlds_help("the recipe's (its env keys, then its curriculum's)"))
-    parser.add_argument("--algo", choices=["ddpg", "td3", "sac", "ppo"],
+    parser.add_argument("--algo", choices=["ddpg", "td3", "sac", "tqc", "ppo"],
                         help="algorithm (default ddpg, the paper's); settings in autoscoop/training/hyperparams/ALGO.yaml")
     parser.add_argument("--recipe", choices=RECIPES,
                         help=f"{recipes_help()} (autoscoop/training/recipes/NAME.yaml, laid over the algorithm's "

@@ -8,7 +8,7 @@ try:
 except PackageNotFoundError:  # running from a source tree that is not installed
     __version__ = "0.0.0+unknown"
 
-MEASURED_WITH = ("mujoco", "numpy", "gymnasium", "torch", "stable-baselines3")
+MEASURED_WITH = ("mujoco", "numpy", "gymnasium", "torch", "stable-baselines3", "sb3-contrib")
 """Distributions whose version can change a measured figure: the simulator and its arrays move every rollout, the
 learning libraries every trained policy."""
 

@@ -32,6 +32,8 @@ def make_policy(algo: str, spec: dict[str, Any]) -> tuple[Any, dict[str, Any]]:
         return sb3_policies.PaperPolicy, history
     if algo == "sac":
         return sb3_policies.PaperSACPolicy, history
+    if algo == "tqc":
+        return sb3_policies.PaperTQCPolicy, history
     return "MlpPolicy", {"net_arch": {"pi": list(PAPER_LAYERS), "vf": list(PAPER_LAYERS)},
                          "features_extractor_class": sb3_policies.NormalizedState}
 

@@ -82,7 +82,7 @@ class TrainArgs:
     """Arguments of one training run."""
 
     algo: str = "ddpg"
-    """ddpg (the paper's), td3, sac or ppo; settings from autoscoop/training/hyperparams/ALGO.yaml."""
+    """ddpg (the paper's), td3, sac, tqc or ppo; settings from autoscoop/training/hyperparams/ALGO.yaml."""
     episodes: int | None = None
     """training episodes; ``None``: the recipe's ``episodes`` (the paper's: 800)."""
     seed: int = 0

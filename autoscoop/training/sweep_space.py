@@ -142,7 +142,7 @@ class SweepSpace(BaseModel):
 
     model_config = ConfigDict(frozen=True, extra="forbid")
 
-    algo: Literal["ddpg", "td3", "sac", "ppo"] = "ddpg"
+    algo: Literal["ddpg", "td3", "sac", "tqc", "ppo"] = "ddpg"
     """the algorithm; ``hyper`` keys are those of its YAML."""
     recipe: Literal[RECIPES] = PAPER_RECIPE  # type: ignore[valid-type]  # the registry's names
     """the recipe laid over the algorithm's YAML (as ``autoscoop train --recipe``; one of
