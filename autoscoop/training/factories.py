@@ -28,6 +28,8 @@ def make_policy(algo: str, spec: dict[str, Any]) -> tuple[Any, dict[str, Any]]:
     if spec.get("policy") != "paper":
         return "MlpPolicy", {}
     history = {"history_steps": history_steps(spec)} if history_steps(spec) > 1 else {}
+    if critics(spec) is not None:
+        history["n_critics"] = critics(spec)
     if algo in ("ddpg", "td3"):
         return sb3_policies.PaperPolicy, history
     if algo == "sac":
@@ -45,6 +47,25 @@ def history_steps(spec: dict[str, Any]) -> int:
         ValueError: a value that is not a whole number from 1 to :data:`~autoscoop.core.state.MAX_HISTORY_STEPS`.
     """
     return checked_history_steps(spec.get("history_steps", 1), "the recipe")
+
+
+def critics(spec: dict[str, Any]) -> int | None:
+    """The YAML's ``critics``: how many critics of the paper's (DDPG, TD3, SAC) or quantile critics (TQC) the run
+    trains, each on the same transitions from its own start; the critics' targets take the lowest of their
+    estimates (clipped double Q), so one critic's overestimate does not carry. ``None`` without the key: the
+    algorithm's own number (DDPG 1, TD3 and SAC 2, TQC 2).
+
+    Raises:
+        ValueError: a value that is not a whole number from 1 to 10, or a key for PPO (no critic of this kind).
+    """
+    value = spec.get("critics")
+    if value is None:
+        return None
+    if isinstance(value, bool) or not isinstance(value, int) or not 1 <= value <= 10:
+        raise ValueError(f"critics = {value!r} in the recipe is out of range; allowed whole numbers in [1, 10]")
+    if spec.get("algo") == "ppo":
+        raise ValueError("critics needs an off-policy algorithm (ddpg, td3, sac, tqc); this run trains 'ppo'")
+    return value
 
 
 def time_limit_ends_return(spec: dict[str, Any]) -> bool:

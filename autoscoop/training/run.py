@@ -61,6 +61,7 @@ from autoscoop.training.checkpoints import (
     write_run_json,
 )
 from autoscoop.training.factories import (
+    critics,
     history_steps,
     keep_target_actor,
     make_noise,
@@ -158,6 +159,7 @@ def train(args: TrainArgs) -> Path:
     repeated_pile_envs(spec, args.n_envs)
     time_limit_ends_return(spec)
     keep_target_actor(spec)
+    critics(spec)
     init_path = init_source(args.init_from, args.algo, args.trust) if args.init_from else None
     run_dir = Path(args.out) if args.out else _default_run_dir(args)
     created = not run_dir.exists()
