@@ -155,7 +155,6 @@ class PaperSACPolicy(_PaperDefaults, SACPolicy):
         return PaperSACActor(**actor_kwargs).to(self.device)
 
 
-
 class PaperTQCActor(TQCActor):
     """TQC's squashed-Gaussian actor with the paper's hidden layers (its mean action has the PaperActor's shape)."""
 

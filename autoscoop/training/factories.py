@@ -27,15 +27,15 @@ def make_policy(algo: str, spec: dict[str, Any]) -> tuple[Any, dict[str, Any]]:
     """
     if spec.get("policy") != "paper":
         return "MlpPolicy", {}
-    history = {"history_steps": history_steps(spec)} if history_steps(spec) > 1 else {}
+    kwargs: dict[str, Any] = {"history_steps": history_steps(spec)} if history_steps(spec) > 1 else {}
     if critics(spec) is not None:
-        history["n_critics"] = critics(spec)
+        kwargs["n_critics"] = critics(spec)
     if algo in ("ddpg", "td3"):
-        return sb3_policies.PaperPolicy, history
+        return sb3_policies.PaperPolicy, kwargs
     if algo == "sac":
-        return sb3_policies.PaperSACPolicy, history
+        return sb3_policies.PaperSACPolicy, kwargs
     if algo == "tqc":
-        return sb3_policies.PaperTQCPolicy, history
+        return sb3_policies.PaperTQCPolicy, kwargs
     return "MlpPolicy", {"net_arch": {"pi": list(PAPER_LAYERS), "vf": list(PAPER_LAYERS)},
                          "features_extractor_class": sb3_policies.NormalizedState}
 
@@ -50,10 +50,10 @@ def history_steps(spec: dict[str, Any]) -> int:
 
 
 def critics(spec: dict[str, Any]) -> int | None:
-    """The YAML's ``critics``: how many critics of the paper's (DDPG, TD3, SAC) or quantile critics (TQC) the run
-    trains, each on the same transitions from its own start; the critics' targets take the lowest of their
-    estimates (clipped double Q), so one critic's overestimate does not carry. ``None`` without the key: the
-    algorithm's own number (DDPG 1, TD3 and SAC 2, TQC 2).
+    """The YAML's ``critics``: how many critics the run trains, each on the same transitions from its own start, so
+    that one critic's overestimate does not carry into the targets. DDPG, TD3 and SAC (the paper's critics): each
+    target takes the lowest of their estimates (clipped double Q); TQC (quantile critics): the targets pool their
+    quantiles and drop the highest. ``None`` without the key: the algorithm's own number (DDPG 1, the others 2).
 
     Raises:
         ValueError: a value that is not a whole number from 1 to 10, or a key for PPO (no critic of this kind).
