@@ -11,18 +11,17 @@ these agree; a run stopped early is compared on the window it reached.
 from __future__ import annotations
 
 import argparse
-import csv
 import json
 import math
 from pathlib import Path
 
 from autoscoop.core.safe_files import write_bytes_atomically
+from autoscoop.training.sweep_results import read_evaluations
 
 
 def window_means(run: Path, after: int, until: int) -> dict[str, float | int]:
     """Means of the run's periodic evaluations with ``after < episode <= until``, and their count."""
-    with open(run / "evaluations.csv", newline="") as handle:
-        rows = [row for row in csv.DictReader(handle) if after < int(row["episode"]) <= until]
+    rows = [row for row in read_evaluations(run) if after < int(row["episode"]) <= until]
     if not rows:
         raise SystemExit(f"{run}: no periodic evaluation between episodes {after} and {until}")
     means: dict[str, float | int] = {"evaluations": len(rows)}

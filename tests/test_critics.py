@@ -38,5 +38,5 @@ def test_the_twin_critics_recipe_trains_ddpg_with_two_critics_of_the_papers_shap
         values = model.policy.critic(observation, action)
     assert len(values) == 2 and not torch.equal(values[0], values[1])  # two critics from their own starts
     assert first is not second and len(model.policy.critic_target.q_networks) == 2
-    plain_policy, plain_kwargs = make_policy("ddpg", load_recipe("ddpg", "robot_history_deadline"))
+    _, plain_kwargs = make_policy("ddpg", load_recipe("ddpg", "robot_history_deadline"))
     assert "n_critics" not in plain_kwargs  # without the key, DDPG's own single critic

@@ -28,8 +28,8 @@ def make_policy(algo: str, spec: dict[str, Any]) -> tuple[Any, dict[str, Any]]:
     if spec.get("policy") != "paper":
         return "MlpPolicy", {}
     kwargs: dict[str, Any] = {"history_steps": history_steps(spec)} if history_steps(spec) > 1 else {}
-    if critics(spec) is not None:
-        kwargs["n_critics"] = critics(spec)
+    if (count := critics(spec)) is not None:
+        kwargs["n_critics"] = count
     if algo in ("ddpg", "td3"):
         return sb3_policies.PaperPolicy, kwargs
     if algo == "sac":

@@ -32,6 +32,7 @@ from typing import Annotated, Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 
+from autoscoop.agents.algorithms import ALGORITHMS
 from autoscoop.core.config import ConfigError, ConfigModel, ScoopConfig, read_yaml_file, setting
 from autoscoop.training.recipes import PAPER_RECIPE, RECIPES
 from autoscoop.training.settings import load_recipe, with_hyper_overrides
@@ -142,7 +143,7 @@ class SweepSpace(BaseModel):
 
     model_config = ConfigDict(frozen=True, extra="forbid")
 
-    algo: Literal["ddpg", "td3", "sac", "tqc", "ppo"] = "ddpg"
+    algo: Literal[tuple(ALGORITHMS)] = "ddpg"  # type: ignore[valid-type]  # the registry's names
     """the algorithm; ``hyper`` keys are those of its YAML."""
     recipe: Literal[RECIPES] = PAPER_RECIPE  # type: ignore[valid-type]  # the registry's names
     """the recipe laid over the algorithm's YAML (as ``autoscoop train --recipe``; one of
