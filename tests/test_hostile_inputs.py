@@ -516,6 +516,18 @@ def _records_being_written(tmp: Path) -> Probe:
                  absent=[folder / "episode_00000.npz"])
 
 
+def _demo_records_being_written(tmp: Path) -> Probe:
+    records = tmp / "demo" / "records"
+    records.mkdir(parents=True)
+    earlier = records / "episode_00000.npz"
+    earlier.write_bytes(b"the other demo's record")
+    lock = FileLock(records / RECORDS_LOCK)
+    lock.acquire()  # another demo writing there, as far as this one can tell: released when the case's test ends
+    _HELD.append(lock)
+    return Probe(["demo", "--episodes", "1", "--no-video", "--out", tmp / "demo"],
+                 ["another autoscoop process", str(records)], keep=[earlier], absent=[tmp / "demo" / "summary.json"])
+
+
 def _inline_alias_bomb(levels: int = 8) -> str:
     items = ["&a0 [x, x, x, x, x, x, x, x, x]"]
     items += [f"&a{i} [{', '.join([f'*a{i - 1}'] * 9)}]" for i in range(1, levels)]
@@ -542,6 +554,7 @@ CASES += [
                                              "--out", tmp / "s"], ["--cases"], absent=[tmp / "s.json", tmp / "s"])),
     Case("compare-over-earlier-records", _compare_over_earlier),
     Case("records-folder-locked", _records_being_written),
+    Case("demo-records-folder-locked", _demo_records_being_written),
     Case("config-dev-zero", lambda tmp: Probe(["eval", "--episodes", "1", "--config", "/dev/zero"],
                                                ["/dev/zero", "larger than"])),
     Case("export-onnx-policy", lambda tmp: Probe(

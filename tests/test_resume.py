@@ -373,7 +373,7 @@ def test_resume_refuses_settings_it_would_ignore(options, interrupted, capsys):
     assert resumed == []
 
 
-@pytest.mark.parametrize("options", [["--out", "elsewhere"], ["--init", "other-run"], ["--trust"]])
+@pytest.mark.parametrize("options", [["--out", "elsewhere"], ["--init", "other-run"]])
 def test_resume_refuses_options_of_a_new_run(options, interrupted, capsys):
     run_dir, resumed = interrupted
     assert main(["train", "--resume", str(run_dir), *options]) == 2
@@ -412,3 +412,23 @@ def test_a_new_run_still_gets_the_documented_defaults(tmp_path, monkeypatch):
             args.eval_episodes, args.demo_episodes) == ("ddpg", "robot_smooth", 5000, 0, 1, 50, 50, 10, None)
     assert main(["train", "--recipe", "paper"]) == 0  # the paper's recipe, with its own episode count
     assert (seen[1].recipe, seen[1].episodes) == ("paper", 800)
+
+
+def test_a_run_fine_tuned_from_a_zip_starts_again_only_with_trust(tmp_path, capsys):
+    """Killed before its first checkpoint, a run started with ``--init RUN --trust`` loads the zip again: without
+    ``--trust`` the resume is refused and changes no file; with it, the run starts again and finishes."""
+    source, tuned = tmp_path / "source", tmp_path / "tuned"
+    assert main(["train", "--episodes", "2", "--eval-every", "2", "--eval-episodes", "1", "--out", str(source),
+                 *FAST]) == 0
+    assert main(["train", "--init", str(source), "--trust", "--episodes", "2", "--eval-every", "2",
+                 "--eval-episodes", "1", "--out", str(tuned), *FAST]) == 0
+    info = json.loads((tuned / "run.json").read_text())
+    assert Path(info["init_from"]).name == "policy.zip"
+    (tuned / "run.json").write_text(json.dumps({**info, "status": "running"}))  # as if killed before a checkpoint
+    before = {path.name: path.read_bytes() for path in tuned.iterdir() if path.is_file()}
+    capsys.readouterr()
+    assert main(["train", "--resume", str(tuned), "--no-progress"]) == 2
+    assert "--trust" in capsys.readouterr().err
+    assert {path.name: path.read_bytes() for path in tuned.iterdir() if path.is_file()} == before
+    assert main(["train", "--resume", str(tuned), "--trust", "--no-progress"]) == 0
+    assert json.loads((tuned / "run.json").read_text())["status"] == "finished"

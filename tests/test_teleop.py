@@ -134,3 +134,24 @@ def test_a_session_records_the_episode_it_was_driven_through(tmp_path):
     assert record.arrays()["state"][-1, 6] > 0.05, "the loader drove forward"
     assert viewer.texts and "Up" in viewer.texts[0][2]
     assert "saved" in messages[0]
+
+
+def test_a_second_session_into_the_same_folder_is_refused(tmp_path, monkeypatch, capsys):
+    from filelock import FileLock
+
+    from autoscoop.cli import main as cli_main
+    from autoscoop.commands import RECORDS_LOCK
+    from autoscoop.sim import glbackend
+
+    monkeypatch.setattr(glbackend, "has_display", lambda environ: True)  # past the display check, to the folder
+    folder = tmp_path / "manual"
+    folder.mkdir()
+    lock = FileLock(folder / RECORDS_LOCK)
+    lock.acquire()  # another session recording there
+    try:
+        code = cli_main(["teleop", "--out", str(folder)])
+    finally:
+        lock.release()
+    error = capsys.readouterr().err
+    assert code == 2 and "another autoscoop process" in error and str(folder) in error
+    assert [p.name for p in folder.iterdir()] == [RECORDS_LOCK]  # the viewer never opened, nothing recorded

@@ -13,7 +13,14 @@ import time
 from pathlib import Path
 
 from autoscoop.agents.loading import load_policy
-from autoscoop.commands import check_output_dir, check_output_file, config_from_args, options, write_json
+from autoscoop.commands import (
+    check_output_dir,
+    check_output_file,
+    config_from_args,
+    options,
+    records_dir_lock,
+    write_json,
+)
 from autoscoop.core.config import ScoopConfig
 from autoscoop.core.policy import Policy
 from autoscoop.evaluation.evaluate import evaluate, format_table, summarize
@@ -36,16 +43,23 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from autoscoop.report.data import load_episodes  # noqa: PLC0415 - matplotlib only when needed
-    from autoscoop.report.markdown import write_report  # noqa: PLC0415
-
     started = time.perf_counter()
     config = config_from_args(args)
     out: Path = args.out
     records = out / "records"
     check_outputs(out, records, video=not args.no_video)  # before the first episode, not after the last
+    policy = load_policy(args.policy, config)  # a policy that cannot load leaves no folder behind
+    with records_dir_lock(records, "--out"):  # one demo at a time clears, fills and reports OUT/records
+        return _demo(args, config, policy, out, records, started)
+
+
+def _demo(args: argparse.Namespace, config: ScoopConfig, policy: Policy, out: Path, records: Path,
+          started: float) -> int:
+    """Record, tabulate, film and report the demo's episodes (under ``records``' lock)."""
+    from autoscoop.report.data import load_episodes  # noqa: PLC0415 - matplotlib only when needed
+    from autoscoop.report.markdown import write_report  # noqa: PLC0415
+
     name = args.policy
-    policy = load_policy(name, config)
     for old in records.glob("episode_*.npz"):  # a previous demo's episodes would join this report
         old.unlink()
 

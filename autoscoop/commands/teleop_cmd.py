@@ -13,7 +13,8 @@ import argparse
 import os
 from pathlib import Path
 
-from autoscoop.commands import config_from_args, options
+from autoscoop.commands import config_from_args, options, records_dir_lock
+from autoscoop.core.config import ScoopConfig
 
 MANUAL_TIME_LIMIT_S = 20.0
 """Episode limit for people: the paper's manual cycles took 10 s on average, against 8 s for the controller's limit."""
@@ -34,16 +35,23 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from autoscoop.core.state import CommandLimits  # noqa: PLC0415
-    from autoscoop.envs.scoop import make_scoop_env  # noqa: PLC0415
-    from autoscoop.evaluation.recorder import EpisodeRecorder  # noqa: PLC0415
-    from autoscoop.evaluation.teleop import SessionOptions, TeleopKeys, help_lines, run_session  # noqa: PLC0415
     from autoscoop.sim.glbackend import has_display  # noqa: PLC0415
 
     config = config_from_args(args).with_overrides({"env.max_episode_s": args.time_limit})  # usage errors first
     if not has_display(os.environ):
         raise SystemExit("autoscoop teleop needs a display (no DISPLAY or WAYLAND_DISPLAY is set)")
+    with records_dir_lock(args.out, "--out"):  # one session at a time records into --out
+        return _session(args, config)
+
+
+def _session(args: argparse.Namespace, config: ScoopConfig) -> int:
+    """Open the viewer, run the episodes the keyboard drives, save each finished one under ``args.out``."""
     import mujoco.viewer  # noqa: PLC0415
+
+    from autoscoop.core.state import CommandLimits  # noqa: PLC0415
+    from autoscoop.envs.scoop import make_scoop_env  # noqa: PLC0415
+    from autoscoop.evaluation.recorder import EpisodeRecorder  # noqa: PLC0415
+    from autoscoop.evaluation.teleop import SessionOptions, TeleopKeys, help_lines, run_session  # noqa: PLC0415
 
     env = EpisodeRecorder(make_scoop_env(config), {"policy": "manual", "source": "teleop"})
     keys = TeleopKeys(CommandLimits.for_robot(config.robot))

@@ -23,8 +23,7 @@ default to ``None`` so that ``--resume`` can tell what was given."""
 RECORDED = {"algo": "--algo", "recipe": "--recipe", "seed": "--seed", "n_envs": "--n-envs", "checkpoint_every": "--checkpoint-every",
             "eval_every": "--eval-every", "eval_episodes": "--eval-episodes", "demo_episodes": "--demo-episodes"}
 """options whose value a run records in ``run.json`` (key: option): ``--resume`` takes them only with that value."""
-NOT_WITH_RESUME = {"out": "--out", "init": "--init", "trust": "--trust", "config": "--config", "overrides": "--set",
-                   "hyper": "--hyper"}
+NOT_WITH_RESUME = {"out": "--out", "init": "--init", "config": "--config", "overrides": "--set", "hyper": "--hyper"}
 """options ``--resume`` refuses (argparse name: option): the run directory is ``--resume``'s, and the run keeps
 the settings in its ``config.yaml`` and ``hyperparams.yaml``."""
 
@@ -53,7 +52,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument("--init", type=Path, metavar="RUN_DIR",
                         help="fine-tune: start from the policy of this finished run (same --algo)")
     options.add_trust_option(parser, "let --init start from the run's whole policy.zip (actor and critic) instead of "
-                                     "its safe actor file: loading a zip unpickles it, which can run code")
+                                     "its safe actor file: loading a zip unpickles it, which can run code; with "
+                                     "--resume, lets a run started that way, killed before its first checkpoint, "
+                                     "load the zip again")
     parser.add_argument("--hyper", action="append", default=[], metavar="SECTION.KEY=VALUE",
                         help="override a setting of the algorithm's YAML, e.g. hyperparams.learning_rate=3e-4 "
                              "or noise.sigma_start=0.05 (repeatable)")
@@ -80,7 +81,7 @@ def run(args: argparse.Namespace) -> int:
         if read_run_json(args.resume).get("status") == "finished" and selection_pending(args.resume):
             run_dir = args.resume  # trained; killed while its snapshots were being validated
         else:
-            run_dir = resume(args.resume, progress=not args.no_progress)
+            run_dir = resume(args.resume, progress=not args.no_progress, trust=args.trust)
     else:
         for name, value in DEFAULTS.items():
             if getattr(args, name) is None:

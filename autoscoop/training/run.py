@@ -198,17 +198,21 @@ def _start(args: TrainArgs, run_dir: Path, config: ScoopConfig, spec: dict[str, 
                 on_evaluation=args.on_evaluation)
 
 
-def resume(run_dir: Path, progress: bool = True, on_evaluation: Callable[[Evaluation], None] | None = None) -> Path:
+def resume(run_dir: Path, progress: bool = True, on_evaluation: Callable[[Evaluation], None] | None = None,
+           trust: bool = False) -> Path:
     """Continue an interrupted run from its last checkpoint (episodes after it are redone; without a checkpoint
     the run starts again from episode 0). The resumed run's files are those an uninterrupted run writes.
-    ``on_evaluation``: as :attr:`TrainArgs.on_evaluation`, for the evaluations from the checkpoint on."""
+    ``on_evaluation``: as :attr:`TrainArgs.on_evaluation`, for the evaluations from the checkpoint on.
+    ``trust``: as :attr:`TrainArgs.trust`, for a run fine-tuned from a ``policy.zip`` that starts again from
+    episode 0 and so loads the zip again (a checkpoint holds no pickle)."""
     run_dir = Path(run_dir)
     read_run_json(run_dir)  # a run directory, before a lock file is put in it
     with lock_run_dir(run_dir):
-        return _continue(run_dir, progress, on_evaluation)
+        return _continue(run_dir, progress, on_evaluation, trust)
 
 
-def _continue(run_dir: Path, progress: bool, on_evaluation: Callable[[Evaluation], None] | None = None) -> Path:
+def _continue(run_dir: Path, progress: bool, on_evaluation: Callable[[Evaluation], None] | None = None,
+              trust: bool = False) -> Path:
     """:func:`resume` under the run directory's lock (``run.json`` is read again: the last holder may have
     finished the run)."""
     info = read_run_json(run_dir)
@@ -222,10 +226,11 @@ def _continue(run_dir: Path, progress: bool, on_evaluation: Callable[[Evaluation
     config = from_dict(read_run_yaml(run_dir, "config.yaml"))
     found = find_checkpoint(run_dir, info["algo"])
     if found is None:  # killed before its first checkpoint: start again, as if new
+        model = _new_model(run_dir, config, spec, info, trust=trust)  # first: a refused --init zip changes no file
         clear_run_outputs(run_dir)
         _set_bookkeeping(info, wall_s=0.0, best_score=None, best_episode=None)
         write_run_json(run_dir, info)
-        return _run(run_dir, config, spec, info, done=0, model=None, progress=progress, on_evaluation=on_evaluation)
+        return _run(run_dir, config, spec, info, done=0, model=model, progress=progress, on_evaluation=on_evaluation)
     checkpoint, state = found
     done = state["episodes_done"]
     env = make_vec_env(config_at(config, spec, done), info["n_envs"], info["seed"] + done, privileged_critic(spec),
