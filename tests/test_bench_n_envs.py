@@ -80,3 +80,25 @@ def test_make_vec_env_subprocesses_step_as_the_same_envs_in_process():
     finally:
         for vec in (sub, single, second):
             vec.close()
+
+
+@pytest.mark.parametrize("argv, flag, mode", [
+    (["payload", "--n-envs", "2"], "--n-envs", "payload"),
+    (["payload", "--repeats", "2"], "--repeats", "payload"),
+    (["--steps", "5"], "--steps", "speed"),
+    (["--actions", "fixed"], "--actions", "speed"),
+    (["--calibration", "cal.yaml"], "--calibration", "speed"),
+    (["--n-envs", "2", "--episodes", "3"], "--episodes", "scaling"),
+    (["--n-envs", "2", "--records", "recs"], "--records", "scaling"),
+])
+def test_an_option_of_another_mode_is_refused_before_any_measurement(argv, flag, mode, tmp_path, capsys, monkeypatch):
+    from autoscoop.commands import bench_cmd
+
+    monkeypatch.chdir(tmp_path)
+    measured = []
+    monkeypatch.setattr(bench_cmd, "run_bench", lambda *a, **k: measured.append("speed"))
+    monkeypatch.setattr(bench_cmd, "run_vec_bench", lambda *a, **k: measured.append("scaling"))
+    assert main(["bench", *argv, "--json", str(tmp_path / "b.json")]) == 2
+    err = capsys.readouterr().err
+    assert f"{flag} is an option of" in err and f"not of {mode}" in err
+    assert measured == [] and not any(tmp_path.iterdir())

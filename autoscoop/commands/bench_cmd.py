@@ -5,7 +5,8 @@
                                 training builds them: subprocesses) against one, and the scaling ratio
   autoscoop bench payload       payload: error of the payload mass estimated from the joint torques (paper eq. 4, 8)
 
-Each mode's own options are listed under its name below; --json, --config and --set apply to all three.
+Each mode's own options are listed under its name below; --json, --config and --set apply to all three. An
+option of another mode is refused rather than ignored.
 """
 
 from __future__ import annotations
@@ -15,6 +16,13 @@ from pathlib import Path
 
 from autoscoop.commands import check_output_file, config_from_args, options, write_json
 from autoscoop.evaluation.bench import run_bench, run_vec_bench
+
+MODE_OPTIONS = {"speed": ("episodes", "repeats"), "scaling": ("n_envs", "steps", "actions", "seed", "repeats"),
+                "payload": ("episodes", "records", "calibration")}
+"""each mode's own options (argparse names); --json, --config and --set apply to all three."""
+MODE_COMMANDS = {"speed": "autoscoop bench", "scaling": "autoscoop bench --n-envs N", "payload": "autoscoop bench payload"}
+OPTION_FLAGS = {"episodes": "--episodes", "repeats": "--repeats", "n_envs": "--n-envs", "steps": "--steps",
+                "actions": "--actions", "seed": "--seed", "records": "--records", "calibration": "--calibration"}
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -43,10 +51,29 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                          help="the estimators' calibration YAML (default nominal)")
     options.add_json_option(parser, "the results")
     options.add_config_args(parser)
-    parser.set_defaults(func=run)
+    parser.set_defaults(func=run, option_defaults={name: parser.get_default(name) for name in OPTION_FLAGS})
+
+
+def mode_of(args: argparse.Namespace) -> str:
+    """The mode the arguments ask for: ``payload``, ``scaling`` (``--n-envs``) or ``speed``."""
+    return "payload" if args.target == "payload" else "scaling" if args.n_envs is not None else "speed"
+
+
+def refuse_other_modes_options(args: argparse.Namespace) -> None:
+    """Refuse an option of another mode given a value of its own (it would be ignored without a word).
+
+    Raises:
+        ValueError: naming the option, the modes it belongs to and the mode asked for.
+    """
+    mode = mode_of(args)
+    for name, flag in OPTION_FLAGS.items():
+        if name not in MODE_OPTIONS[mode] and getattr(args, name) != args.option_defaults[name]:
+            owners = " and ".join(f"{m} ({MODE_COMMANDS[m]})" for m, names in MODE_OPTIONS.items() if name in names)
+            raise ValueError(f"{flag} is an option of {owners}, not of {mode} ({MODE_COMMANDS[mode]}); leave it out")
 
 
 def run(args: argparse.Namespace) -> int:
+    refuse_other_modes_options(args)
     if args.json:  # fail before the first measurement, not after the last
         check_output_file(args.json, "--json")
     if args.target == "payload":
