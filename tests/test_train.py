@@ -454,3 +454,14 @@ def test_a_bad_learning_rate_end_is_refused_by_name(tmp_path, monkeypatch, value
                         lambda algo, recipe: {**original(algo, "paper"), "learning_rate_end": value})
     with pytest.raises(ValueError, match="learning_rate_end"):
         train_mod.train(train_mod.TrainArgs(episodes=1, out=tmp_path / "run", progress=False))
+
+
+def test_train_offers_each_algorithm_of_the_registry_and_no_other(capsys):
+    from autoscoop.agents.algorithms import ALGORITHMS
+    from autoscoop.training.recipes import algorithm_names
+
+    assert set(algorithm_names()) == set(ALGORITHMS)  # one YAML per class, one class per YAML
+    with pytest.raises(SystemExit):
+        main(["train", "--algo", "nonesuch"])
+    err = capsys.readouterr().err
+    assert all(name in err for name in ALGORITHMS)

@@ -11,7 +11,7 @@ from typing import TYPE_CHECKING
 from autoscoop.commands import options
 from autoscoop.core.config import overrides_from_yaml, parse_set_args, read_yaml_file
 from autoscoop.envs import worlds_help
-from autoscoop.training.recipes import DEFAULT_EPISODES, RECIPES, SHIPPED_RECIPE, recipes_help
+from autoscoop.training.recipes import DEFAULT_EPISODES, RECIPES, SHIPPED_RECIPE, algorithm_names, recipes_help
 
 if TYPE_CHECKING:
     from autoscoop.evaluation.selection import Ranked
@@ -31,7 +31,7 @@ the settings in its ``config.yaml`` and ``hyperparams.yaml``."""
 def register(subparsers: argparse._SubParsersAction) -> None:
     parser = subparsers.add_parser("train", help="train a controller", description=__doc__,
                                    epilog=worlds_help("the recipe's (its env keys, then its curriculum's)"))
-    parser.add_argument("--algo", choices=["ddpg", "td3", "sac", "tqc", "ppo"],
+    parser.add_argument("--algo", choices=algorithm_names(),
                         help="algorithm (default ddpg, the paper's); settings in autoscoop/training/hyperparams/ALGO.yaml")
     parser.add_argument("--recipe", choices=RECIPES,
                         help=f"{recipes_help()} (autoscoop/training/recipes/NAME.yaml, laid over the algorithm's "

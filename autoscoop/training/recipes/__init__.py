@@ -90,6 +90,13 @@ def recipe_overlay(name: str) -> dict[str, Any]:
     return overlay
 
 
+def algorithm_names() -> tuple[str, ...]:
+    """The algorithms with a YAML in ``autoscoop/training/hyperparams/``, sorted: ``train --algo``'s choices,
+    read without torch (:data:`autoscoop.agents.algorithms.ALGORITHMS` maps the same names to their classes)."""
+    folder = resources.files("autoscoop") / "training" / "hyperparams"
+    return tuple(sorted(entry.name.removesuffix(".yaml") for entry in folder.iterdir() if entry.name.endswith(".yaml")))
+
+
 def algorithm_yaml(algo: str) -> dict[str, Any]:
     """The algorithm's YAML as it stands in the package (``autoscoop/training/hyperparams/ALGO.yaml``)."""
     text = (resources.files("autoscoop") / "training" / "hyperparams" / f"{algo}.yaml").read_text()
