@@ -86,6 +86,14 @@ def fit(student: PaperActor, inputs: np.ndarray, labels: np.ndarray, epochs: int
     return loss_sum
 
 
+def positive(text: str) -> int:
+    """A whole number of 1 or more (argparse type)."""
+    value = int(text)
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"must be 1 or more, got {value}")
+    return value
+
+
 def main(argv: list[str] | None = None) -> int:
     from stable_baselines3 import DDPG  # noqa: PLC0415
     from teacher_feasibility import TeacherPolicy  # noqa: PLC0415
@@ -97,8 +105,8 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--teacher", type=Path, required=True, help="teacher run directory (its policy.zip)")
     parser.add_argument("--init", type=Path, default=None, help="the student's starting actor file")
-    parser.add_argument("--iterations", type=int, default=8)
-    parser.add_argument("--episodes", type=int, default=40, help="episodes per iteration")
+    parser.add_argument("--iterations", type=positive, default=8)
+    parser.add_argument("--episodes", type=positive, default=40, help="episodes per iteration")
     parser.add_argument("--beta", type=float, default=0.5, help="teacher's share of the first iteration's episodes")
     parser.add_argument("--beta-decay", type=float, default=0.5)
     parser.add_argument("--epochs", type=int, default=20)
@@ -117,7 +125,7 @@ def main(argv: list[str] | None = None) -> int:
     model.set_parameters(str(args.teacher / "policy.zip"), device="cpu")
     teacher = SB3Policy(model, "teacher")
     if args.init is not None:
-        student, init_meta = load_actor(args.init)
+        student, _ = load_actor(args.init)
         if student.history_steps != history:
             raise SystemExit(f"--init reads {student.history_steps} states, the teacher {history}")
     else:
