@@ -7,7 +7,8 @@ the teacher's history of states and commands), as every shipped actor is. Each i
 the randomised world in which the student acts (the teacher, with probability ``beta`` per episode, which
 shrinks each iteration), labels every state the student saw with the teacher's action, adds them to the
 data set, and fits the student to all of it (mean squared error on the actions). The student starts from
-``--init`` (an actor file of the same history) or from scratch.
+``--init`` (an actor file of the same history) or from scratch. With ``--heavy-teacher``, a second teacher
+labels (and drives) the episodes of heavy earth, from ``--heavy-from`` kg per particle.
 
 Each iteration writes ``DIR/iteration_K.safetensors`` (a policy file ``autoscoop stress --policy`` runs) and
 ``DIR/dagger.json`` (per iteration: episodes, labelled states, training loss, and the student's own success,
@@ -33,15 +34,19 @@ from autoscoop.agents.policy_files import load_actor, save_actor
 from autoscoop.core.config import ScoopConfig
 from autoscoop.core.safe_files import write_json_atomically
 from autoscoop.core.state import actor_input_size
+from autoscoop.envs.privileged import NOMINAL_PARTICLE_MASS_KG, PRIVILEGED_NAMES
 from autoscoop.envs.rollout import rollout
 
 
 class MixedPolicy:
     """Acts as the teacher or the student (chosen per episode), and records every actor input with the
-    teacher's action for it."""
+    teacher's action for it. With a ``heavy_teacher``, that one teaches (and acts) in the episodes whose
+    particle mass is ``heavy_from_kg`` or more (read from the privileged numbers)."""
 
-    def __init__(self, teacher, student: PaperActor, actor_size: int, frame: str) -> None:
+    def __init__(self, teacher, student: PaperActor, actor_size: int, frame: str, heavy_teacher=None,
+                 heavy_from_kg: float = float("inf")) -> None:
         self.teacher, self.student, self.actor_size = teacher, student, actor_size
+        self.heavy_teacher, self.heavy_from_kg = heavy_teacher, heavy_from_kg
         self.state_frame = frame
         self.name = "dagger"
         self.use_teacher = False
@@ -50,10 +55,18 @@ class MixedPolicy:
 
     def reset(self) -> None:
         self.teacher.reset()
+        if self.heavy_teacher is not None:
+            self.heavy_teacher.reset()
+
+    def teacher_for(self, observation: np.ndarray):
+        """The heavy teacher where the episode's particle mass is ``heavy_from_kg`` or more, else the teacher."""
+        density = observation[self.actor_size + PRIVILEGED_NAMES.index("relative_density")]
+        heavy = self.heavy_teacher is not None and density * NOMINAL_PARTICLE_MASS_KG >= self.heavy_from_kg
+        return self.heavy_teacher if heavy else self.teacher
 
     def act(self, observation: np.ndarray) -> np.ndarray:
         observation = np.asarray(observation, dtype=np.float32)
-        teacher_action = np.asarray(self.teacher.act(observation), dtype=np.float32)
+        teacher_action = np.asarray(self.teacher_for(observation).act(observation), dtype=np.float32)
         actor_input = observation[:self.actor_size]
         self.inputs.append(actor_input)
         self.labels.append(teacher_action)
@@ -104,6 +117,10 @@ def main(argv: list[str] | None = None) -> int:
 
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--teacher", type=Path, required=True, help="teacher run directory (its policy.zip)")
+    parser.add_argument("--heavy-teacher", type=Path, default=None,
+                        help="a teacher run for the episodes whose particle mass is --heavy-from or more")
+    parser.add_argument("--heavy-from", type=float, default=0.36, help="particle mass from which the heavy teacher "
+                        "teaches, kg (default 0.36)")
     parser.add_argument("--init", type=Path, default=None, help="the student's starting actor file")
     parser.add_argument("--iterations", type=positive, default=8)
     parser.add_argument("--episodes", type=positive, default=40, help="episodes per iteration")
@@ -121,9 +138,15 @@ def main(argv: list[str] | None = None) -> int:
     frame = read_run_json(args.teacher).get("state_frame", "chassis")
     config = ScoopConfig().with_overrides({"randomize.preset": args.preset})
     env = make_training_env(config, privileged=True, history=history)
-    model = DDPG(TeacherPolicy, env, policy_kwargs={"history_steps": history}, device="cpu")
-    model.set_parameters(str(args.teacher / "policy.zip"), device="cpu")
-    teacher = SB3Policy(model, "teacher")
+    def load_teacher(run: Path) -> SB3Policy:
+        if int((read_run_yaml(run, "hyperparams.yaml") or {}).get("history_steps", 1)) != history:
+            raise SystemExit(f"{run} reads another history than {args.teacher}")
+        model = DDPG(TeacherPolicy, env, policy_kwargs={"history_steps": history}, device="cpu")
+        model.set_parameters(str(run / "policy.zip"), device="cpu")
+        return SB3Policy(model, run.name)
+
+    teacher = load_teacher(args.teacher)
+    heavy_teacher = load_teacher(args.heavy_teacher) if args.heavy_teacher else None
     if args.init is not None:
         student, _ = load_actor(args.init)
         if student.history_steps != history:
@@ -131,7 +154,7 @@ def main(argv: list[str] | None = None) -> int:
     else:
         student = PaperActor(history_steps=history)
     student.eval()
-    mixed = MixedPolicy(teacher, student, actor_input_size(history), frame)
+    mixed = MixedPolicy(teacher, student, actor_input_size(history), frame, heavy_teacher, args.heavy_from)
     rng = np.random.default_rng(args.seed)
     generator = torch.Generator().manual_seed(args.seed)
     args.out.mkdir(parents=True, exist_ok=True)
@@ -153,6 +176,7 @@ def main(argv: list[str] | None = None) -> int:
         mixed.inputs, mixed.labels = [], []
         loss = fit(student, np.array(all_inputs), np.array(all_labels), args.epochs, args.batch, args.lr, generator)
         meta = {"algo": "dagger", "teacher": args.teacher.name, "iteration": iteration,
+                **({"heavy_teacher": args.heavy_teacher.name, "heavy_from_kg": args.heavy_from} if heavy_teacher else {}),
                 "state_frame": frame, "seed": args.seed}
         save_actor(student, args.out / f"iteration_{iteration}.safetensors", meta)
         row = {"iteration": iteration, "beta": round(beta, 4), "states": len(all_inputs), "loss": round(loss, 5),
@@ -164,6 +188,7 @@ def main(argv: list[str] | None = None) -> int:
         log.append(row)
         print(row, flush=True)
         write_json_atomically(args.out / "dagger.json", {"teacher": str(args.teacher), "init": str(args.init),
+                                                         "heavy_teacher": str(args.heavy_teacher),
                                                          "args": {k: str(v) for k, v in vars(args).items()},
                                                          "iterations": log})
     save_actor(student, args.out / "policy.safetensors", meta)
