@@ -8,7 +8,8 @@ the randomised world in which the student acts (the teacher, with probability ``
 shrinks each iteration), labels every state the student saw with the teacher's action, adds them to the
 data set, and fits the student to all of it (mean squared error on the actions). The student starts from
 ``--init`` (an actor file of the same history) or from scratch. With ``--heavy-teacher``, a second teacher
-labels (and drives) the episodes of heavy earth, from ``--heavy-from`` kg per particle.
+labels (and drives) the episodes of heavy earth, from ``--heavy-from`` kg per particle. With ``--robot-teacher``
+the teacher is an ordinary run's actor, which reads what the student reads (distillation alone, no privilege).
 
 Each iteration writes ``DIR/iteration_K.safetensors`` (a policy file ``autoscoop stress --policy`` runs) and
 ``DIR/dagger.json`` (per iteration: episodes, labelled states, training loss, and the student's own success,
@@ -76,6 +77,21 @@ class MixedPolicy:
             return self.student(torch.as_tensor(actor_input)[None]).numpy()[0]
 
 
+class RobotStateTeacher:
+    """An ordinary run's actor as the teacher: it reads the actor's input only (the privileged numbers after it
+    are dropped), as the student does."""
+
+    def __init__(self, actor: PaperActor, actor_size: int) -> None:
+        self.actor, self.actor_size = actor, actor_size
+
+    def reset(self) -> None:
+        pass
+
+    def act(self, observation: np.ndarray) -> np.ndarray:
+        with torch.no_grad():
+            return self.actor(torch.as_tensor(observation[:self.actor_size])[None]).numpy()[0]
+
+
 def fit(student: PaperActor, inputs: np.ndarray, labels: np.ndarray, epochs: int, batch: int, lr: float,
         generator: torch.Generator) -> float:
     """Fit the student to the labels (mean squared error); the last epoch's mean loss."""
@@ -117,6 +133,8 @@ def main(argv: list[str] | None = None) -> int:
 
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--teacher", type=Path, required=True, help="teacher run directory (its policy.zip)")
+    parser.add_argument("--robot-teacher", action="store_true",
+                        help="--teacher is an ordinary run: its policy.safetensors (robot state only) teaches")
     parser.add_argument("--heavy-teacher", type=Path, default=None,
                         help="a teacher run for the episodes whose particle mass is --heavy-from or more")
     parser.add_argument("--heavy-from", type=float, default=0.36, help="particle mass from which the heavy teacher "
@@ -145,7 +163,13 @@ def main(argv: list[str] | None = None) -> int:
         model.set_parameters(str(run / "policy.zip"), device="cpu")
         return SB3Policy(model, run.name)
 
-    teacher = load_teacher(args.teacher)
+    if args.robot_teacher:
+        robot_actor, _ = load_actor(args.teacher / "policy.safetensors")
+        if robot_actor.history_steps != history:
+            raise SystemExit(f"{args.teacher}/policy.safetensors reads another history than its hyperparams.yaml")
+        teacher = RobotStateTeacher(robot_actor, actor_input_size(history))
+    else:
+        teacher = load_teacher(args.teacher)
     heavy_teacher = load_teacher(args.heavy_teacher) if args.heavy_teacher else None
     if args.init is not None:
         student, _ = load_actor(args.init)
