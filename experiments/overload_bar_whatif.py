@@ -16,13 +16,10 @@ import sys
 from pathlib import Path
 
 from autoscoop.core.safe_files import read_json, write_json_atomically
+from autoscoop.evaluation.stress import Threshold
 
 MAX_STRESS_BYTES = 64 << 20
 """the largest stress JSON read (100 episodes x 11 cases with their records is about 0.6 MB)."""
-
-
-def passes(measured: float, op: str, threshold: float) -> bool:
-    return measured >= threshold if op == ">=" else measured <= threshold
 
 
 def cases_held(rows: list[dict], overload_above: float | None) -> tuple[int, list[str]]:
@@ -35,7 +32,7 @@ def cases_held(rows: list[dict], overload_above: float | None) -> tuple[int, lis
             measured = check["measured"]
             if check["metric"] == "overload_rate" and overload_above is not None:
                 measured = sum(e["fill_factor"] > overload_above for e in episodes) / len(episodes)
-            ok &= passes(measured, check["op"], check["threshold"])
+            ok &= Threshold(check["metric"], check["op"], check["threshold"]).holds(measured)
         if not ok:
             failed.append(row["case"])
     return len(rows) - len(failed), failed

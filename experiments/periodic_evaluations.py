@@ -11,11 +11,10 @@ these agree; a run stopped early is compared on the window it reached.
 from __future__ import annotations
 
 import argparse
-import json
 import math
 from pathlib import Path
 
-from autoscoop.core.safe_files import write_bytes_atomically
+from autoscoop.core.safe_files import write_json_atomically
 from autoscoop.training.sweep_results import read_evaluations
 
 
@@ -43,8 +42,7 @@ def main() -> None:
         figures[run.name] = window_means(run, args.after, args.until)
         print(f"{run.name}: {figures[run.name]}")
     if args.json:
-        text = json.dumps({"window": [args.after, args.until], "runs": figures}, separators=(",", ":"))
-        write_bytes_atomically(args.json, (text + "\n").encode())
+        write_json_atomically(args.json, {"window": [args.after, args.until], "runs": figures}, indent=None)
 
 
 if __name__ == "__main__":

@@ -294,12 +294,10 @@ def _new_model(run_dir: Path, config: ScoopConfig, spec: dict[str, Any], info: d
 def _run(run_dir: Path, config: ScoopConfig, spec: dict[str, Any], info: dict[str, Any], done: int,
          model: Any, progress: bool, evaluations_done: int = 0,
          on_evaluation: Callable[[Evaluation], None] | None = None) -> Path:
-    """Train from episode ``done`` to the end (``evaluations_done`` evaluations already listed), then write the
-    final files; ``model`` ``None``: a new one. ``on_evaluation`` observes each periodic evaluation."""
+    """Train ``model`` from episode ``done`` to the end (``evaluations_done`` evaluations already listed), then
+    write the final files. ``on_evaluation`` observes each periodic evaluation."""
     torch.set_num_threads(1)
     n_envs, episodes = info["n_envs"], info["episodes"]
-    if model is None:
-        model = _new_model(run_dir, config, spec, info)
     evaluator = PolicyEvaluator(run_dir, config_at(config, spec, done), info.get("eval_every", 50),
                                 info.get("eval_episodes", 10), info, done=evaluations_done,
                                 make_env=partial(make_training_env, privileged=privileged_critic(spec),

@@ -32,9 +32,8 @@ from typing import Annotated, Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 
-from autoscoop.agents.algorithms import ALGORITHMS
 from autoscoop.core.config import ConfigError, ConfigModel, ScoopConfig, read_yaml_file, setting
-from autoscoop.training.recipes import PAPER_RECIPE, RECIPES
+from autoscoop.training.recipes import PAPER_RECIPE, RECIPES, algorithm_names
 from autoscoop.training.settings import load_recipe, with_hyper_overrides
 
 DISTRIBUTIONS = ("choice", "uniform", "loguniform", "grid")
@@ -143,7 +142,7 @@ class SweepSpace(BaseModel):
 
     model_config = ConfigDict(frozen=True, extra="forbid")
 
-    algo: Literal[tuple(ALGORITHMS)] = "ddpg"  # type: ignore[valid-type]  # the registry's names
+    algo: Literal[algorithm_names()] = "ddpg"  # type: ignore[valid-type]  # the algorithms' YAML files, as train --algo
     """the algorithm; ``hyper`` keys are those of its YAML."""
     recipe: Literal[RECIPES] = PAPER_RECIPE  # type: ignore[valid-type]  # the registry's names
     """the recipe laid over the algorithm's YAML (as ``autoscoop train --recipe``; one of
