@@ -122,3 +122,47 @@ def add_config_args(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--config", type=Path, metavar="FILE.yaml",
                         help="YAML file with config sections (robot, pile, reward, env)")
     add_set_option(parser)
+
+
+EXIT_NOTHING_DONE = 3
+"""Exit code of a run that ran to its end and achieved nothing: every update a fault, no scoop reached the
+terminal point, or no message arrived (``--allow-empty`` turns it into 0). Usage and input errors exit 2."""
+
+ROBOT_FILE_HELP = "the robot's YAML: topics, limits, timeouts, calibration, units (docs/robot.example.yaml)"
+"""what ``--robot FILE`` holds wherever a command reads the robot file."""
+
+
+def add_robot_option(parser: argparse.ArgumentParser, required: bool = False, what: str = ROBOT_FILE_HELP) -> None:
+    """``--robot FILE``: the robot file (topics, limits, calibration), the one spelling every command uses."""
+    parser.add_argument("--robot", type=Path, required=required, metavar="FILE.yaml", help=what)
+
+
+def add_allow_empty_option(parser: argparse.ArgumentParser) -> None:
+    """``--allow-empty``: exit 0 even when the run achieved nothing (see :data:`EXIT_NOTHING_DONE`)."""
+    parser.add_argument("--allow-empty", action="store_true",
+                        help=f"exit 0 even when no scoop reached the terminal point, every update was a fault or "
+                             f"no message arrived (otherwise exit {EXIT_NOTHING_DONE})")
+
+
+def nothing_done(command: str, why: str, allow_empty: bool) -> int:
+    """Print why a run achieved nothing and return its exit code (``EXIT_NOTHING_DONE``, or 0 with ``--allow-empty``)."""
+    import sys
+    print(f"autoscoop {command}: {why}", file=sys.stderr)
+    return 0 if allow_empty else EXIT_NOTHING_DONE
+
+
+class _RetiredOption(argparse.Action):
+    """An old spelling that is refused with a message naming the new one (no silent alias)."""
+
+    def __init__(self, option_strings, dest, instead: str = "", **kwargs):
+        self.instead = instead
+        super().__init__(option_strings, dest, nargs="?", help=argparse.SUPPRESS, **kwargs)
+
+    def __call__(self, parser, namespace, values, option_string=None):
+        parser.error(f"{option_string} is no longer an option here: {self.instead}")
+
+
+def retire_option(parser: argparse.ArgumentParser, old: str, instead: str) -> None:
+    """Refuse ``old`` on ``parser`` with a usage error (exit 2) that says ``instead`` (the new spelling)."""
+    parser.add_argument(old, action=_RetiredOption, instead=instead, dest=f"retired_{old.strip('-').replace('-', '_')}",
+                        default=None)
