@@ -74,8 +74,8 @@ def replayed(path: Path, policy: str, work: Path) -> dict:
 def measure(policy: str, episodes: int, work: Path) -> dict:
     results = {}
     env = loopback_environment()
-    run_pair("ros2", policy, episodes, env, ["--record", str(work / "ros2_controller.mcap")],
-             ["--record", str(work / "ros2_sim.mcap")], work)
+    run_pair("ros2", policy, episodes, env, ["--bag", str(work / "ros2_controller.mcap")],
+             ["--bag", str(work / "ros2_sim.mcap")], work)
     logs = [work / "ros2_controller.mcap", work / "ros2_sim.mcap"]
     if ros_available():
         with RosMaster() as master:

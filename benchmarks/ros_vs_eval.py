@@ -55,10 +55,10 @@ def measure(policy: str, episodes: int, delay_s: float, noise: bool, seed: int =
             robot_config: Path | None = None, ros_version: int = 1) -> dict:
     work = Path(tempfile.mkdtemp(prefix="autoscoop-ros-vs-eval-"))
     cli = [sys.executable, "-m", "autoscoop.cli"]
-    command, records = ("ros", "--record") if ros_version == 1 else ("ros2", "--records")
+    command, records = ("ros", "--records") if ros_version == 1 else ("ros2", "--records")
     with RosMaster() if ros_version == 1 else contextlib.nullcontext() as master:
         env = master.env if ros_version == 1 else loopback_environment()
-        robot = ["--config", str(robot_config)] if robot_config else []
+        robot = ["--robot", str(robot_config)] if robot_config else []
         controller = subprocess.Popen([*cli, command, "controller", "--policy", policy, records, str(work / "robot"),
                                        *robot],
                                       env=env, stdout=open(work / "controller.log", "w"),
@@ -66,7 +66,7 @@ def measure(policy: str, episodes: int, delay_s: float, noise: bool, seed: int =
         started = time.monotonic()
         try:
             sim = subprocess.run([*cli, command, "sim", "--episodes", str(episodes), "--seed", str(seed), "--json",
-                                  str(work / "ros.json"), "--delay-s", str(delay_s), *(NOISE if noise else [])],
+                                  str(work / "ros.json"), "--delay-s", str(delay_s), *(NOISE if noise else []), *robot],
                                  env=env, capture_output=True, text=True, timeout=60 + 15 * episodes)
         finally:
             controller.terminate()
@@ -99,13 +99,14 @@ def main() -> int:
     parser.add_argument("--episodes", type=int, default=20)
     parser.add_argument("--delay-s", type=float, default=0.0, help="extra delay of every sensor message, s")
     parser.add_argument("--noise", action="store_true", help="sensor noise: " + " ".join(NOISE))
-    parser.add_argument("--robot-config", type=Path,
-                        help="the controller's YAML, e.g. with payload: {source: topic} (the simulator's true mass)")
+    parser.add_argument("--robot", type=Path, metavar="FILE.yaml",
+                        help="the robot file both nodes take, e.g. with payload: {source: topic} (the simulator's "
+                             "true mass)")
     parser.add_argument("--ros", type=int, choices=(1, 2), default=1,
                         help="ROS 1 (a private rosmaster) or ROS 2 (Cyclone DDS on loopback); default 1")
     parser.add_argument("--json", type=Path)
     args = parser.parse_args()
-    r = measure(args.policy, args.episodes, args.delay_s, args.noise, robot_config=args.robot_config,
+    r = measure(args.policy, args.episodes, args.delay_s, args.noise, robot_config=args.robot,
                 ros_version=args.ros)
     for side in ("ros", "eval"):
         s = r[side]

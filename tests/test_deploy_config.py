@@ -70,7 +70,7 @@ def test_yaml_file_round_trip_and_errors_name_the_file(tmp_path):
 def test_controller_refuses_to_start_with_a_bad_config(tmp_path, capsys):
     bad = tmp_path / "robot.yaml"
     bad.write_text("control: {input_timeout_s: -1}\n")
-    assert main(["ros", "controller", "--policy", "heuristic", "--config", str(bad)]) == 2
+    assert main(["ros", "controller", "--policy", "heuristic", "--robot", str(bad)]) == 2
     err = capsys.readouterr().err
     assert "controller not started" in err and "control.input_timeout_s" in err and "allowed [0.02, 5.0]" in err
 

@@ -160,7 +160,7 @@ YAML_COMMANDS: dict[str, Callable[[Path, Path], list[str]]] = {
     "config": lambda path, tmp: ["config", "--config", path],
     "train": lambda path, tmp: ["train", "--config", path, "--episodes", "1", "--out", tmp / "new", "--no-progress"],
     "sweep-space": lambda path, tmp: ["sweep", "--space", path, "--trials", "1", "--episodes", "1", "--out", tmp / "new"],
-    "ros-robot-yaml": lambda path, tmp: ["ros", "controller", "--check", "--policy", "heuristic", "--config", path],
+    "ros-robot-yaml": lambda path, tmp: ["ros", "controller", "--check", "--policy", "heuristic", "--robot", path],
 }
 
 
@@ -714,7 +714,7 @@ SMALL_FILE_COMMANDS = {
     "train": ["train", "--episodes", "1", "--config", "{file}", "--out", "{tmp}/run"],
     "resume": ["train", "--resume", "{tmp}", "--no-progress"],
     "sweep": ["sweep", "--space", "{file}", "--episodes", "1", "--trials", "1", "--out", "{tmp}/sweep"],
-    "ros-robot-yaml": ["ros", "controller", "--check", "--policy", "heuristic", "--config", "{file}"],
+    "ros-robot-yaml": ["ros", "controller", "--check", "--policy", "heuristic", "--robot", "{file}"],
     "calibration": ["bench", "payload", "--calibration", "{file}", "--episodes", "1"],
 }
 

@@ -207,14 +207,14 @@ def test_sim_and_controller_scoop_over_ros2_in_a_namespace_with_remapped_topics(
     remap = "joint_states:=sensors/joints"
     env = dict(os.environ, PYTHONUNBUFFERED="1")
     controller = subprocess.Popen([sys.executable, "-m", "autoscoop.cli", "ros2", "controller", "--policy",
-                                   "heuristic", "--records", str(tmp_path / "robot"), "--record",
+                                   "heuristic", "--records", str(tmp_path / "robot"), "--bag",
                                    str(tmp_path / "controller.mcap"), "__ns:=/e2e", remap],
                                   env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
     out = tmp_path / "ros2_sim.json"
     try:
         sim = subprocess.run([sys.executable, "-m", "autoscoop.cli", "ros2", "sim", "--episodes", "1", "--json",
                               str(out), "--set", "pile.variants=1", "--joint-noise-rad", "0.001", "--wait-s", "60",
-                              "--record", str(tmp_path / "sim.mcap"), "__ns:=/e2e", remap], env=env,
+                              "--bag", str(tmp_path / "sim.mcap"), "__ns:=/e2e", remap], env=env,
                              capture_output=True, text=True, timeout=120)
     finally:
         controller.terminate()  # SIGTERM: the node stops the robot, writes its record and leaves
@@ -254,7 +254,7 @@ def check_recordings_and_replay(folder):
 
         out = folder / f"replay_{name}"
         run = subprocess.run([sys.executable, "-m", "autoscoop.cli", "replay", str(path), "--policy", "heuristic",
-                              "--namespace", "/e2e", "--set", "pile.variants=1", "--config", str(remapped_config(folder)),
+                              "--namespace", "/e2e", "--set", "pile.variants=1", "--robot", str(remapped_config(folder)),
                               "--out", str(out), "--json", str(out / "summary.json")],
                              capture_output=True, text=True, timeout=120)
         assert run.returncode == 0, run.stdout + run.stderr

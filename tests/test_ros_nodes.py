@@ -138,7 +138,7 @@ def test_fuzzed_sensor_messages_never_yield_a_bad_command(probe):
 def test_sim_and_controller_scoop_over_ros_with_remapped_topics(master, tmp_path):
     """`ros sim` + `ros controller` in their own namespace, joint_states remapped on both sides."""
     remap = "joint_states:=sensors/joints"
-    controller = autoscoop_process(["ros", "controller", "--policy", "heuristic", "--record", str(tmp_path / "robot"),
+    controller = autoscoop_process(["ros", "controller", "--policy", "heuristic", "--records", str(tmp_path / "robot"),
                                     remap], master.env, namespace="e2e")
     out = tmp_path / "ros_sim.json"
     try:
@@ -167,7 +167,7 @@ def test_sim_and_controller_scoop_over_ros_with_remapped_topics(master, tmp_path
     # the simulator's ROS 1 bag, replayed with the same policy, gives the commands that were sent
     (tmp_path / "robot.yaml").write_text("topics:\n  joint_states: sensors/joints\n")
     replay = subprocess.run([sys.executable, "-m", "autoscoop.cli", "replay", str(tmp_path / "sim.bag"), "--policy",
-                             "heuristic", "--namespace", "/e2e", "--config", str(tmp_path / "robot.yaml"), "--out",
+                             "heuristic", "--namespace", "/e2e", "--robot", str(tmp_path / "robot.yaml"), "--out",
                              str(tmp_path / "replay"), "--json", str(tmp_path / "replay.json")],
                             capture_output=True, text=True, timeout=120)
     assert replay.returncode == 0, replay.stdout + replay.stderr

@@ -1,6 +1,6 @@
 """``autoscoop replay LOG --policy P``: a robot's log through the controller, offline, before it drives.
 
-Reads a ROS 1 ``.bag``, a ROS 2 bag folder or an MCAP file (``autoscoop ros2 controller|sim --record``,
+Reads a ROS 1 ``.bag``, a ROS 2 bag folder or an MCAP file (``autoscoop ros2 controller|sim --bag``,
 ``ros2 bag record``, ``rosbag record``), feeds the recorded readings to the controller core at their
 log times with their stamps (the watchdog judging them as on the robot), and writes, in --out:
 
@@ -8,9 +8,9 @@ log times with their stamps (the watchdog judging them as on the robot), and wri
   what the policy would have commanded, with the watchdog's verdict (``mode``, ``reason``);
 - ``replay.png``: both against time, the spans where the controller stopped the robot marked.
 
-Topic names come from the robot YAML (--config), relative to --namespace. Updates happen at the logged
+Topic names come from the robot YAML (--robot), relative to --namespace. Updates happen at the logged
 commands' times (--schedule recorded, the default when the log has cmd_vel: on a log of
-``ros2 controller --record`` the same policy reproduces the commands sent) or at the controller's own
+``ros2 controller --bag`` the same policy reproduces the commands sent) or at the controller's own
 control periods and watchdog expiries (--schedule own).
 """
 
@@ -29,7 +29,10 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                                    description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("log", type=Path, metavar="LOG", help="a ROS 1 .bag, a ROS 2 bag folder or an .mcap file")
     options.add_policy_option(parser, accepts="default (shipped), heuristic, a .onnx file or a policy file")
-    parser.add_argument("--config", type=Path, help="the robot's YAML: topics, limits, timeouts, calibration")
+    options.add_robot_option(parser)
+    options.retire_option(parser, "--config", "the robot file is --robot FILE (replay runs no simulation, so it "
+                                              "takes no scene settings file)")
+    options.retire_option(parser, "--robot-config", "the robot file is --robot FILE")
     options.add_set_option(parser, "scene/task config the policy was made for, e.g. --set pile.angle_deg=28")
     options.add_trust_option(parser)
     parser.add_argument("--namespace", default="/", help="the namespace the robot's topics lie in (default /)")

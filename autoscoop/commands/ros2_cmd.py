@@ -19,8 +19,14 @@ import signal
 from collections.abc import Callable
 from pathlib import Path
 
-from autoscoop.commands import check_output_dir, check_output_file
-from autoscoop.commands.ros_cmd import add_controller_options, add_sim_options, checked_controller, simulate
+from autoscoop.commands import check_output_dir, check_output_file, options
+from autoscoop.commands.ros_cmd import (
+    add_controller_options,
+    add_records_option,
+    add_sim_options,
+    checked_controller,
+    simulate,
+)
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -31,7 +37,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     controller = nodes.add_parser("controller", help="run a policy on the robot's ROS 2 topics, with watchdog and limits",
                                   description=_CONTROLLER_DOC, formatter_class=argparse.RawDescriptionHelpFormatter)
     add_controller_options(controller)
-    controller.add_argument("--records", type=Path, metavar="DIR", help="write one episode record per scoop here")
+    add_records_option(controller)
     add_bag_option(controller, "every input as the controller took it and every command it sent, on its own clock "
                                "(autoscoop replay reproduces the commands from it)")
     controller.add_argument("remap", nargs="*", type=ros2_remap, metavar="FROM:=TO",
@@ -42,6 +48,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                            description=_SIM_DOC, formatter_class=argparse.RawDescriptionHelpFormatter)
     add_sim_options(sim)
     add_bag_option(sim, "every sensor message and scoop flag as published, every command as it arrived")
+    options.retire_option(sim, "--record", "the recorded bag is --bag FILE.mcap")
     sim.add_argument("remap", nargs="*", type=ros2_remap, metavar="FROM:=TO",
                      help="ROS 2 remappings; __ns:=/NAMESPACE sets the namespace")
     sim.set_defaults(func=run_sim)
@@ -68,23 +75,23 @@ time, obeys cmd_vel and the joint commands, and starts each episode on the scoop
 
 
 def add_bag_option(parser: argparse.ArgumentParser, what: str) -> None:
-    """``--record FILE.mcap``: the node's topics as a ROS 2 bag (MCAP, CDR, ROS 2 schemas)."""
-    parser.add_argument("--record", type=mcap_path, metavar="FILE.mcap",
+    """``--bag FILE.mcap``: the node's topics as a ROS 2 bag (MCAP, CDR, ROS 2 schemas)."""
+    parser.add_argument("--bag", type=mcap_path, metavar="FILE.mcap",
                         help=f"record the node's topics to this MCAP file (a ROS 2 bag): {what}")
 
 
 def mcap_path(text: str) -> Path:
-    """``type=`` of ``--record``: a path ending in ``.mcap``."""
+    """``type=`` of ``--bag``: a path ending in ``.mcap``."""
     if not text.endswith(".mcap"):
         raise argparse.ArgumentTypeError(f"{text!r}: the recording is an MCAP file, its name ends in .mcap")
     return Path(text)
 
 
 def _mcap_log(path: Path | None):
-    """The MCAP log of ``--record`` (checked writable first), or ``None``."""
+    """The MCAP log of ``--bag`` (checked writable first), or ``None``."""
     if path is None:
         return None
-    check_output_file(path, "--record")
+    check_output_file(path, "--bag")
     from autoscoop.deploy.ros2.mcap_log import McapLog  # noqa: PLC0415
 
     return McapLog(path)
@@ -116,6 +123,8 @@ def _domain_checked() -> None:
 def run_controller(args: argparse.Namespace) -> int:
     if args.records:
         check_output_dir(args.records, "--records")
+    if args.bag:
+        check_output_file(args.bag, "--bag")
     core = checked_controller(args, args.records)
     if core is None:
         return 0
@@ -125,7 +134,7 @@ def run_controller(args: argparse.Namespace) -> int:
         _domain_checked()
         from autoscoop.deploy.ros2.controller_node import ControllerNode  # noqa: PLC0415
 
-        node = ControllerNode(core, args.remap, log=_mcap_log(args.record))
+        node = ControllerNode(core, args.remap, log=_mcap_log(args.bag))
         _stop_on_sigterm(node.stop)
         return node.spin()
     except Ros2Unavailable as error:
@@ -140,7 +149,7 @@ def run_sim(args: argparse.Namespace) -> int:
         _domain_checked()
         from autoscoop.deploy.ros2.sim_node import SimNode  # noqa: PLC0415
 
-        node = SimNode(bridge, remaps=args.remap, log=_mcap_log(args.record))
+        node = SimNode(bridge, remaps=args.remap, log=_mcap_log(args.bag))
         _stop_on_sigterm(node.stop)
         return node.run(args.episodes, seed=args.seed, wait_for_controller_s=args.wait_s)
 

@@ -14,7 +14,7 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-from autoscoop.commands import check_output_file, config_from_args, options, write_json
+from autoscoop.commands import check_output_dir, check_output_file, config_from_args, options, write_json
 from autoscoop.core.config import ConfigError, ScoopConfig, parse_set_args
 
 
@@ -26,7 +26,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     controller = nodes.add_parser("controller", help="run a policy on the robot's topics, with watchdog and limits",
                                   description=_CONTROLLER_DOC, formatter_class=argparse.RawDescriptionHelpFormatter)
     add_controller_options(controller)
-    controller.add_argument("--record", type=Path, metavar="DIR", help="write one episode record per scoop here")
+    add_records_option(controller)
     controller.add_argument("remap", nargs="*", type=ros_remap, metavar="NAME:=NEW",
                             help="ROS remappings and private parameters")
     controller.set_defaults(func=run_controller)
@@ -44,7 +44,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 def add_controller_options(controller: argparse.ArgumentParser) -> None:
     """The options every controller node takes (``ros controller``, ``ros2 controller``), but where it records."""
     options.add_policy_option(controller, accepts="default (shipped), heuristic, a .onnx file (onnxruntime only) or a policy file")
-    controller.add_argument("--config", type=Path, help="the robot's YAML: limits, timeouts, calibration, topics")
+    options.add_robot_option(controller, what=ROBOT_HELP)
+    retire_robot_spellings(controller, scene=False)
     options.add_set_option(controller, "scene/task config the policy was made for, e.g. --set pile.angle_deg=28 (labels "
                                "the records; the heuristic aims at reward.terminal_*)")
     options.add_trust_option(controller)
@@ -60,12 +61,33 @@ def add_sim_options(sim: argparse.ArgumentParser) -> None:
     for flag, key, unit, what in LINK_OPTIONS:
         sim.add_argument(flag, type=options.NumberIn(0.0, None, unit), default=None, metavar=unit.upper().replace("/", "_").replace("*", "_"),
                          help=f"{what}, {unit}: the config key {key} (same as --set {key}=...; default 0)")
-    sim.add_argument("--robot-config", type=Path,
-                     help="the robot's YAML: topic and joint names, and potentiometer calibration (raw readings)")
+    options.add_robot_option(sim, what=ROBOT_HELP + "; the readings are published in its units (raw "
+                             "potentiometer counts where it calibrates a joint): give the controller the same file")
+    retire_robot_spellings(sim, scene=True)
     sim.add_argument("--label", help="policy name for the summary (default: the policy the controller announces)")
     sim.add_argument("--wait-s", type=options.POSITIVE_SECONDS, default=60.0,
                      help="give up when no controller appears within this long, s (default 60)")
     options.add_config_args(sim)
+
+
+ROBOT_HELP = (f"{options.ROBOT_FILE_HELP}; default: the built-in robot (joints lift and tilt read in radians, "
+              f"the topics' default names)")
+"""``--robot`` on the controller and simulator nodes: both default to the same built-in robot."""
+
+
+def retire_robot_spellings(parser: argparse.ArgumentParser, scene: bool) -> None:
+    """Refuse the robot file's old spellings: ``--robot-config`` and, on a node without a scene, ``--config``."""
+    options.retire_option(parser, "--robot-config", "the robot file is --robot FILE")
+    if not scene:
+        options.retire_option(parser, "--config", "the robot file is --robot FILE (this command runs no "
+                                                  "simulation, so it takes no scene settings file)")
+
+
+def add_records_option(controller: argparse.ArgumentParser) -> None:
+    """``--records DIR`` on a controller node (``--record`` refused, naming it and ``--bag``)."""
+    controller.add_argument("--records", type=Path, metavar="DIR", help="write one episode record per scoop here")
+    options.retire_option(controller, "--record", "episode records are --records DIR (a recorded bag, where the "
+                                                  "node writes one, is --bag FILE)")
 
 
 LINK_OPTIONS = (
@@ -113,7 +135,7 @@ def build_controller(args: argparse.Namespace, record_dir: Path | None = None):
     from autoscoop.deploy.controller import ControllerCore  # noqa: PLC0415
     from autoscoop.deploy.robot_config import load_robot_config  # noqa: PLC0415
 
-    robot = load_robot_config(args.config)
+    robot = load_robot_config(args.robot)
     task = ScoopConfig().with_overrides({**parse_set_args(args.overrides),
                                          "env.control_period_s": robot.control.control_period_s})
     policy = load_policy(args.policy, task, trust=args.trust)
@@ -135,7 +157,9 @@ def checked_controller(args: argparse.Namespace, record_dir: Path | None):
 
 
 def run_controller(args: argparse.Namespace) -> int:
-    core = checked_controller(args, args.record)
+    if args.records:
+        check_output_dir(args.records, "--records")
+    core = checked_controller(args, args.records)
     if core is None:
         return 0
     from autoscoop.deploy.ros1 import RosUnavailable  # noqa: PLC0415
@@ -198,7 +222,7 @@ def simulate(args: argparse.Namespace, command: str, run_node: Callable[[Any], t
         config = config.with_overrides({key: value for key, value in link.items() if value is not None})
     except ConfigError as error:
         raise ConfigError(f"{command}: {error}") from None
-    bridge = SimBridge(config, robot=load_robot_config(args.robot_config), seed=args.seed)
+    bridge = SimBridge(config, robot=load_robot_config(args.robot), seed=args.seed)
     try:
         results, stats = run_node(bridge)
         label = args.label or stats.controller_policy or "ros controller"

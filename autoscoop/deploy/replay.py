@@ -12,7 +12,7 @@ arrival) through the same callbacks as the nodes (:class:`~autoscoop.deploy.cont
 and updates the core:
 
 - ``recorded`` schedule (a log with ``cmd_vel``): at the times of the recorded commands. On a log of
-  ``autoscoop ros2 controller --record`` (inputs and commands on the controller's own clock) the same
+  ``autoscoop ros2 controller --bag`` (inputs and commands on the controller's own clock) the same
   policy then reproduces the commands sent;
 - ``own`` schedule: at the core's own wake-ups (control periods, inputs going stale), as a live node would.
 
