@@ -24,7 +24,7 @@ from autoscoop.evaluation.evaluate import evaluate, format_table, summarize
 def register(subparsers: argparse._SubParsersAction) -> None:
     parser = subparsers.add_parser("eval", help="evaluate a controller over N episodes",
                                    description=__doc__, epilog=worlds_help())
-    options.add_policy_option(parser, default="heuristic")
+    options.add_policy_option(parser)
     options.add_episodes_option(parser, default=100)
     options.add_seed_option(parser)
     options.add_json_option(parser, "the summary (and each episode)")
