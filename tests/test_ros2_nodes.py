@@ -12,6 +12,7 @@ import subprocess
 import sys
 import threading
 import time
+from pathlib import Path
 
 import pytest
 
@@ -40,6 +41,8 @@ from autoscoop.deploy.ros2.sim_node import SENSOR_TOPICS, sensor_messages
 from autoscoop.deploy.sim_bridge import SensorReadings
 from autoscoop.envs.records import load_record
 
+ROBOT_EXAMPLE = str(Path(__file__).resolve().parents[1] / "docs" / "robot.example.yaml")
+"""The README's robot file: both joints read as raw potentiometer readings."""
 DOMAIN = random.Random().randint(100, 199)
 """A domain of this test run's own: two runs at once do not hear each other."""
 CONFIG = RobotNodeConfig()
@@ -269,3 +272,39 @@ def remapped_config(folder):
     path = folder / "robot.yaml"
     path.write_text("topics:\n  joint_states: sensors/joints\n")
     return path
+
+
+# ---------------------------------------------------------------- the README's pair, in the robot's units
+def test_the_readme_pair_scoops_in_raw_readings_refuses_a_simulator_in_radians_and_replays_from_its_bag(tmp_path):
+    """`ros2 controller --robot docs/robot.example.yaml --bag` with `ros2 sim --robot` the same file: the
+    simulator publishes raw potentiometer readings and the shipped policy scoops; a simulator without the
+    file (radians) is refused before its first scoop; the README's `replay` takes the robot file from the bag."""
+    env = dict(os.environ, PYTHONUNBUFFERED="1")
+    cli = [sys.executable, "-m", "autoscoop.cli"]
+    bag = tmp_path / "robot.mcap"
+    controller = subprocess.Popen([*cli, "ros2", "controller", "--policy", "default", "--robot", ROBOT_EXAMPLE,
+                                   "--bag", str(bag)], env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
+                                  text=True)
+    out = tmp_path / "ros2.json"
+    try:
+        radians = subprocess.run([*cli, "ros2", "sim", "--episodes", "1", "--wait-s", "60"], env=env,
+                                 capture_output=True, text=True, timeout=120)
+        raw = subprocess.run([*cli, "ros2", "sim", "--robot", ROBOT_EXAMPLE, "--episodes", "1", "--set",
+                              "pile.variants=1", "--json", str(out), "--wait-s", "60"], env=env,
+                             capture_output=True, text=True, timeout=120)
+    finally:
+        controller.terminate()
+        log, _ = controller.communicate(timeout=20)
+    assert radians.returncode == 2, radians.stdout[-2000:] + radians.stderr[-2000:]
+    assert "raw potentiometer readings" in radians.stderr and "--robot FILE" in radians.stderr, radians.stderr
+    assert raw.returncode == 0, raw.stdout[-3000:] + raw.stderr[-3000:] + log[-3000:]
+    (episode,) = json.loads(out.read_text())["episodes_detail"]
+    assert episode["fill_factor"] >= 0.5 and episode["success"], episode
+
+    replay = tmp_path / "replay"
+    run = subprocess.run([*cli, "replay", str(bag), "--policy", "default", "--out", str(replay), "--json",
+                          str(replay / "summary.json")], capture_output=True, text=True, timeout=120)
+    assert run.returncode == 0, run.stdout + run.stderr
+    summary = json.loads((replay / "summary.json").read_text())
+    assert summary["robot_file"].startswith("/autoscoop_controller/robot") and summary["verdicts"]["running"] >= 5
+    assert all(v is not None and v <= 1e-6 for v in summary["max_difference"].values()), summary

@@ -1,6 +1,6 @@
 """The robot's configuration for the controller node: limits, timeouts, calibration, topic names.
 
-One YAML file (``autoscoop ros controller --config robot.yaml``), every section optional::
+One YAML file (``autoscoop ros controller --robot robot.yaml``), every section optional::
 
     control:   {control_period_s: 0.25, input_timeout_s: 0.5, max_future_stamp_s: 0.1, episode_s: 8.0, ...}
     limits:    {max_speed_mps: 0.1, lift_min_rad: -0.1, lift_max_rad: 0.32, ...}
@@ -280,6 +280,45 @@ class RobotNodeConfig(ConfigModel):
 def robot_config_from_dict(data: Mapping[str, Any]) -> RobotNodeConfig:
     """Build a validated config from a nested dict (missing keys take defaults)."""
     return RobotNodeConfig.from_dict(data)
+
+
+def robot_yaml(config: RobotNodeConfig) -> str:
+    """The whole robot file as YAML text, every key written (what a node announces and its bag keeps)."""
+    import yaml  # noqa: PLC0415
+
+    return yaml.safe_dump(config.to_dict(), sort_keys=False)
+
+
+def robot_from_yaml(text: str, source: str) -> RobotNodeConfig:
+    """A robot file from YAML text (:func:`robot_yaml`'s), checked; ``source`` names where it came from.
+
+    Raises:
+        ConfigError: naming ``source`` and the offending key.
+    """
+    import yaml  # noqa: PLC0415
+
+    try:
+        data = yaml.safe_load(text) or {}
+    except yaml.YAMLError as error:
+        raise ConfigError(f"robot file in {source}: not YAML ({error})") from None
+    if not isinstance(data, Mapping):
+        raise ConfigError(f"robot file in {source}: not a mapping of sections")
+    try:
+        return robot_config_from_dict(data)
+    except ConfigError as error:
+        raise ConfigError(f"robot file in {source}: {error}") from None
+
+
+def joint_readings(config: RobotNodeConfig) -> str:
+    """How the robot's ``joint_states`` carry the two joints: names and units (radians, or the potentiometer
+    calibration), one line. Two nodes that must understand each other's readings have the same line."""
+    parts = []
+    for joint in ("lift", "tilt"):
+        name = getattr(config.sensors, f"{joint}_joint")
+        pot = config.potentiometer(joint)
+        unit = "radians" if pot is None else (f"raw potentiometer readings, {list(pot.raw)} <-> {list(pot.rad)} rad")
+        parts.append(f"{joint} joint {name!r} in {unit}")
+    return "; ".join(parts)
 
 
 def load_robot_config(path: str | Path | None) -> RobotNodeConfig:

@@ -25,6 +25,8 @@ from typing import Any, Protocol
 
 import numpy as np
 
+from autoscoop.core.config import ConfigError
+from autoscoop.deploy.robot_config import joint_readings, robot_from_yaml, robot_yaml
 from autoscoop.deploy.sim_bridge import DelayLine, SensorReadings, SimBridge
 from autoscoop.envs.outcome import EpisodeOutcome
 
@@ -42,6 +44,10 @@ class BagLog(Protocol):
     def close(self) -> None: ...
 
 
+class RobotMismatch(ConfigError):
+    """The controller and the simulator were given robot files that read the joints differently."""
+
+
 @dataclass
 class SimRunStats:
     """How the node kept time: per episode, the simulated and the wall-clock duration."""
@@ -49,13 +55,17 @@ class SimRunStats:
     sim_s: list[float] = field(default_factory=list)
     wall_s: list[float] = field(default_factory=list)
     late_steps: int = 0
+    commands_received: int = 0
+    """commands taken from the controller while episodes ran."""
     controller_policy: str | None = None
     """the controller's policy name, when it is the autoscoop controller."""
+    controller_robot: str | None = None
+    """the controller's robot file (YAML text), when it is the autoscoop controller."""
 
     def as_dict(self) -> dict[str, float]:
         sim, wall = float(np.sum(self.sim_s)), float(np.sum(self.wall_s))
         return {"simulated_s": sim, "wall_s": wall, "real_time_factor": sim / wall if wall > 0 else math.nan,
-                "late_steps": self.late_steps}
+                "late_steps": self.late_steps, "commands_received": self.commands_received}
 
 
 class SimLoop:
@@ -105,7 +115,8 @@ class SimLoop:
         raise NotImplementedError
 
     def wait_for_controller(self, timeout_s: float) -> None:
-        """Wait until a controller listens to ``scoop``; note its policy in :attr:`stats` where it tells it.
+        """Wait until a controller listens to ``scoop``; note its policy and robot file in :attr:`stats` where
+        it tells them.
 
         Raises:
             TimeoutError: none within ``timeout_s``.
@@ -124,11 +135,32 @@ class SimLoop:
         """Unsubscribe, and let the middleware go."""
         raise NotImplementedError
 
+    def robot_message(self, text: str) -> tuple[str, object]:
+        """The node's own robot file (YAML ``text``) as a ``std_msgs/String`` and the topic it is logged on."""
+        raise NotImplementedError
+
+    # ---------------------------------------------------------------- the robot file both nodes share
+    def check_controller_robot(self) -> None:
+        """Refuse to run against a controller that reads ``joint_states`` in other units or joint names.
+
+        Raises:
+            RobotMismatch: the controller's robot file (:attr:`SimRunStats.controller_robot`) describes the
+                joints otherwise than this simulator's.
+        """
+        if self.stats.controller_robot is None:
+            return  # not the autoscoop controller: nothing to compare with
+        theirs = joint_readings(robot_from_yaml(self.stats.controller_robot, "the controller's announcement"))
+        ours = joint_readings(self.bridge.robot)
+        if theirs != ours:
+            raise RobotMismatch(f"the controller reads joint_states as: {theirs}; this simulator publishes: {ours}. "
+                                f"Give both nodes the same robot file (--robot FILE)")
+
     # ---------------------------------------------------------------- commands (the middleware's threads)
     def _command(self, name: str, value: float) -> None:
         if self.live.is_set():
             with self.lock:
                 self.arrived.append((name, float(value)))
+                self.stats.commands_received += 1
                 if self.first_arrival is None:
                     self.first_arrival = time.monotonic()
 
@@ -255,6 +287,10 @@ class SimLoop:
         results: list[EpisodeOutcome] = []
         try:
             self.wait_for_controller(wait_for_controller_s)
+            self.check_controller_robot()
+            if self.log is not None:
+                topic, message = self.robot_message(robot_yaml(self.bridge.robot))
+                self.log.write(topic, message)
             index = 0
             while not self.shutting_down() and (episodes == 0 or index < episodes):
                 result, sim_s = self.episode(seed + index)

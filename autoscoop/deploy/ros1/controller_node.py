@@ -18,6 +18,7 @@ from typing import Any
 
 from autoscoop.deploy.controller import ControllerCore, payload_inputs
 from autoscoop.deploy.controller_loop import ControllerLoop, status_line
+from autoscoop.deploy.robot_config import robot_yaml
 from autoscoop.deploy.ros1 import import_rospy, publishers, subscribers
 from autoscoop.deploy.safety import Command
 
@@ -46,6 +47,7 @@ class ControllerNode(ControllerLoop):
         levels = {"info": rospy.loginfo, "warn": rospy.logwarn, "error": rospy.logerr}
         core.log = lambda level, text: levels.get(level, rospy.loginfo)(text)
         rospy.set_param("~policy", core.policy_name)
+        rospy.set_param("~robot", robot_yaml(core.config))  # the simulator checks its readings' units against it
         topics = core.config.topics
         self.commands = publishers(topics, ("cmd_vel", "lift_command", "tilt_command"), queue_size=10,
                                    tcp_nodelay=False)

@@ -95,7 +95,8 @@ class SimNode(SimLoop):
             self.rospy.signal_shutdown("simulation finished")
 
     def wait_for_controller(self, timeout_s: float) -> None:
-        """Wait until a controller subscribes to ``scoop``; note its ``~policy`` parameter if it has one."""
+        """Wait until a controller subscribes to ``scoop``; note its ``~policy`` and ``~robot`` parameters if it
+        has them."""
         rospy = self.rospy
         waited = time.monotonic()
         while self.scoop.get_num_connections() == 0 and not rospy.is_shutdown():
@@ -106,9 +107,18 @@ class SimNode(SimLoop):
         for node in _publishers_of(rospy, self.topics.cmd_vel):
             try:
                 self.stats.controller_policy = str(rospy.get_param(f"{node}/policy"))
-                break
             except KeyError:
                 continue
+            try:
+                self.stats.controller_robot = str(rospy.get_param(f"{node}/robot"))
+            except KeyError:
+                pass
+            break
+
+    def robot_message(self, text: str) -> tuple[str, object]:
+        from std_msgs.msg import String  # noqa: PLC0415
+
+        return self.rospy.resolve_name("~robot"), String(data=text)
 
 
 def _publishers_of(rospy, topic: str) -> list[str]:

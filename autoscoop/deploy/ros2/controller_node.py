@@ -4,7 +4,8 @@ Subscribes and publishes the topics of ``autoscoop ros controller`` (names from 
 ``topics``, relative to the node's namespace, remappable with ``from:=to``), with ROS 2's QoS
 (:mod:`autoscoop.deploy.ros2.graph`); publishes ``~/status`` (std_msgs/String, latched: the mode and why
 the robot is stopped) and ``~/policy`` (std_msgs/String, latched: the policy's name, which ``ros2 sim``
-reads for its summary). The e-stop is read twice, transient-local (the latched value of a
+reads for its summary) and ``~/robot`` (std_msgs/String, latched: the robot file as YAML, which ``ros2 sim``
+checks its readings' units against, and which the bag keeps for ``autoscoop replay``). The e-stop is read twice, transient-local (the latched value of a
 transient-local publisher) and volatile (a publisher with the default profile): either way it is heard.
 
 Stamps are judged on the ROS 2 clock (the system clock, as ROS 2 nodes without ``use_sim_time``).
@@ -21,6 +22,7 @@ from typing import Any
 
 from autoscoop.deploy.controller import ControllerCore, payload_inputs
 from autoscoop.deploy.controller_loop import ControllerLoop, status_line
+from autoscoop.deploy.robot_config import robot_yaml
 from autoscoop.deploy.ros2.graph import COMMANDS, LATCHED, TOPIC_QOS, Ros2Node
 from autoscoop.deploy.ros2.mcap_log import McapLog, monotonic_offset_ns, wall_clock_ns
 from autoscoop.deploy.ros2.messages import MESSAGE_TYPES, Float64, String, Twist, Vector3
@@ -60,6 +62,10 @@ class ControllerNode(ControllerLoop):
                          for key in ("cmd_vel", "lift_command", "tilt_command")}
         self.status = node.publisher("~/status", String, LATCHED)
         node.publisher("~/policy", String, LATCHED).write(String(core.policy_name))
+        robot = String(robot_yaml(core.config))
+        node.publisher("~/robot", String, LATCHED).write(robot)
+        if log is not None:
+            log.write(node.resolve("~/robot"), robot)
         for key, callback in self.input_callbacks(payload_inputs(core.config.payload)).items():
             node.subscription(getattr(topics, key), MESSAGE_TYPES[key], TOPIC_QOS[key], callback)
         node.subscription(topics.estop, MESSAGE_TYPES["estop"], COMMANDS, self.on_estop)

@@ -5,7 +5,9 @@ Publishes what ``autoscoop ros sim`` publishes (``joint_states``, ``odom``, ``pi
 reliable), stamped on the ROS 2 clock (the system clock), and obeys ``cmd_vel``,
 ``lift_controller/command`` and ``tilt_controller/command``. The episodes' timing is
 :class:`~autoscoop.deploy.sim_loop.SimLoop`'s. A controller counts as present once it reads
-``scoop``; the autoscoop controller's policy name is read from its latched ``autoscoop_controller/policy``.
+``scoop``; the autoscoop controller's policy name is read from its latched ``autoscoop_controller/policy``,
+and its robot file from ``autoscoop_controller/robot``: a controller that reads the joints in other units
+(raw potentiometer readings against radians) is refused before the first scoop.
 """
 
 from __future__ import annotations
@@ -42,7 +44,7 @@ NODE_NAME = "autoscoop_sim"
 CONTROLLER_NODE = "autoscoop_controller"
 SENSOR_TOPICS = ("joint_states", "odom", "pile_range", "bucket_torque", "lift_torque", "payload_mass")
 POLICY_WAIT_S = 1.0
-"""How long the latched policy name of a controller that has appeared is waited for, s."""
+"""How long the latched policy name and robot file of a controller that has appeared are waited for, s."""
 
 
 def sensor_messages(r: SensorReadings, stamp_s: float) -> list[tuple[str, Any]]:
@@ -113,13 +115,20 @@ class SimNode(SimLoop):
         if not self.node.wait_for_subscriber(self.scoop, timeout_s):
             raise TimeoutError(f"no controller subscribed to {self.node.resolve(self.topics.scoop)} within "
                                f"{timeout_s:g} s (ROS_DOMAIN_ID {self.node.domain}); start `autoscoop ros2 controller`")
-        reader = self.node.subscription(f"{CONTROLLER_NODE}/policy", String, LATCHED)
+        policy = self.node.subscription(f"{CONTROLLER_NODE}/policy", String, LATCHED)
+        robot = self.node.subscription(f"{CONTROLLER_NODE}/robot", String, LATCHED)
         deadline = time.monotonic() + POLICY_WAIT_S
-        while time.monotonic() < deadline and self.stats.controller_policy is None:
-            names = take_all(reader, String)
+        while time.monotonic() < deadline and (self.stats.controller_policy is None
+                                               or self.stats.controller_robot is None):
+            names, robots = take_all(policy, String), take_all(robot, String)
             if names:
                 self.stats.controller_policy = names[-1].data
+            if robots:
+                self.stats.controller_robot = robots[-1].data
             time.sleep(0.02)
+
+    def robot_message(self, text: str) -> tuple[str, String]:
+        return self.node.resolve("~/robot"), String(text)
 
     def stop(self) -> None:
         """Ask :meth:`run` to end after the current step (from any thread)."""
