@@ -65,7 +65,8 @@ def evaluate(run_dir: Path, episodes: int, reuse: bool) -> dict[str, Any]:
     out = run_dir.parent / f"{run_dir.name}.eval.json"
     if reuse and out.exists():
         return json.loads(out.read_text())
-    timed([*CLI, "eval", "--policy", str(run_dir), "--episodes", str(episodes), "--json", str(out)],
+    timed([*CLI, "eval", "--policy", str(run_dir), "--episodes", str(episodes), "--json", str(out),
+           "--allow-empty"],  # a run that learnt nothing is a figure here too
           run_dir.parent / f"{run_dir.name}.eval.log")
     return json.loads(out.read_text())
 

@@ -193,7 +193,8 @@ def _check_outputs(out: Path, trials: int, episodes: int) -> list[dict[str, str]
 
 
 def _eval_works(policy: Path) -> None:
-    assert main(["eval", "--policy", str(policy), "--episodes", "1", "--set", "pile.variants=2"]) == 0
+    # a trial of a few episodes may scoop nothing yet: the policy loads and runs, which is what is asked
+    assert main(["eval", "--policy", str(policy), "--episodes", "1", "--set", "pile.variants=2", "--allow-empty"]) == 0
 
 
 def test_two_trial_sweep_on_embedded_ray(tmp_path, ray_env):

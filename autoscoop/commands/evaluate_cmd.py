@@ -1,4 +1,8 @@
-"""``autoscoop eval``: run a controller for N episodes and report fill factor, cycle time, success, spillage."""
+"""``autoscoop eval``: run a controller for N episodes and report fill factor, cycle time, success, spillage.
+
+Exit code 3 when no episode succeeded (no scoop reached the terminal point loaded), after the table and the files
+are written; --allow-empty makes that 0. Usage and input errors exit 2.
+"""
 
 from __future__ import annotations
 
@@ -33,6 +37,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                              "the folder must be new or empty, unless --overwrite")
     options.add_overwrite_option(parser, "with --records: first remove the folder's episode_*.npz records")
     options.add_trust_option(parser)
+    options.add_allow_empty_option(parser)
     options.add_config_args(parser)
     parser.set_defaults(func=run)
 
@@ -60,4 +65,9 @@ def _run(args: argparse.Namespace, config: ScoopConfig) -> int:
         print(f"wrote {args.json}")
     if args.records:
         print(f"wrote {args.episodes} episode records to {args.records}")
+    if not any(result.success for result in results):
+        reached = sum(result.reached for result in results)
+        return options.nothing_done("eval", f"no episode succeeded: none of {len(results)} reached the terminal point "
+                                            f"loaded ({reached} reached it with too little in the bucket)",
+                                    args.allow_empty)
     return 0

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import argparse
 import math
+import sys
 from pathlib import Path
 
 
@@ -146,7 +147,6 @@ def add_allow_empty_option(parser: argparse.ArgumentParser) -> None:
 
 def nothing_done(command: str, why: str, allow_empty: bool) -> int:
     """Print why a run achieved nothing and return its exit code (``EXIT_NOTHING_DONE``, or 0 with ``--allow-empty``)."""
-    import sys
     print(f"autoscoop {command}: {why}", file=sys.stderr)
     return 0 if allow_empty else EXIT_NOTHING_DONE
 

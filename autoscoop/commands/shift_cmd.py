@@ -5,6 +5,10 @@ out, drives to the hopper, dumps into it and returns to the pile's retreating to
 (mean ± std over the shifts); --json keeps every cycle of every shift; --out writes shift.md (per-cycle and total
 tables, the conditions the figures hold under) and its figures; --video films the first shift. --compare runs more
 policies on the same shifts, side by side. The pile and the hopper are the shift.* config keys (`autoscoop config` lists them).
+
+Exit code 3 when no policy delivered anything into the hopper in any shift, after the totals and the files are
+written (a policy of --compare that delivered nothing is named on stderr); --allow-empty makes that 0. Usage and
+input errors exit 2.
 """
 
 from __future__ import annotations
@@ -41,6 +45,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                         help="film the first shift (the --policy's, on --seed) from the side to this MP4, "
                              f"{SHIFT_FPS:g} frames per simulated second")
     options.add_trust_option(parser)
+    options.add_allow_empty_option(parser)
     options.add_config_args(parser)
     parser.set_defaults(func=run)
 
@@ -78,4 +83,16 @@ def run(args: argparse.Namespace) -> int:
             write_mp4(film.frames, tmp, fps=film.fps)
         print(f"wrote {args.video} ({len(film.frames)} frames)")
     print(f"shift took {time.perf_counter() - started:.0f} s")
-    return 0
+    return _judge_delivery(shifts, specs, args.allow_empty)
+
+
+def _judge_delivery(shifts: list[dict], specs: list[str], allow_empty: bool) -> int:
+    """0 when some policy delivered into the hopper; the policies that delivered nothing are named either way."""
+    idle = [spec for spec in specs
+            if not any(shift["totals"].get("delivered_kg", 0.0) > 0 for shift in shifts if shift["policy"] == spec)]
+    if len(idle) < len(specs):
+        for spec in idle:
+            print(f"warning: {spec} delivered nothing into the hopper in any shift", file=sys.stderr)
+        return 0
+    return options.nothing_done("shift", f"no scoop was delivered: {', '.join(specs)} put nothing into the hopper in "
+                                         f"{len(shifts) // len(specs)} shift(s)", allow_empty)
