@@ -52,9 +52,11 @@ def main() -> int:
     work = parser.parse_args().work.resolve()
     out = work / "sweep"
     work.mkdir(parents=True, exist_ok=True)
-    sweep = [str(BIN / "autoscoop"), "sweep", "--out", str(out), "--num-cpus", "2", "--json", str(work / "sweep.json")]
-    first = [*sweep, "--space", str(HERE / "space.yaml"), "--trials", str(TRIALS), "--episodes", str(EPISODES)]
-    facts: dict = {"commands": {"sweep": " ".join(first), "resume": " ".join([*sweep, "--resume"])},
+    sweep = [str(BIN / "autoscoop"), "sweep", "--num-cpus", "2", "--json", str(work / "sweep.json")]
+    first = [*sweep, "--out", str(out), "--space", str(HERE / "space.yaml"), "--trials", str(TRIALS),
+             "--episodes", str(EPISODES)]
+    resume = [*sweep, "--resume", str(out)]
+    facts: dict = {"commands": {"sweep": " ".join(first), "resume": " ".join(resume)},
                    "cpu_count": os.cpu_count(), "load": []}
     start = time.time()
     runs: list[Path] = []
@@ -87,7 +89,7 @@ def main() -> int:
     before = {d.name: snapshot(d) for d in finished}
     resume_start = time.time()
     with open(work / "driver2.log", "w") as log:
-        subprocess.run([*sweep, "--resume"], stdout=log, stderr=subprocess.STDOUT, check=True)
+        subprocess.run(resume, stdout=log, stderr=subprocess.STDOUT, check=True)
     facts["resume_s"] = round(time.time() - resume_start, 1)
     facts["sweep_wall_s"] = round(killed_at + facts["resume_s"], 1)
     facts["finished_trials_untouched"] = {name: snapshot(out / "runs" / name) == files for name, files in before.items()}

@@ -368,7 +368,7 @@ HOSTILE_RECORDS: dict[str, tuple[Callable[[Path], Path], str]] = {
 RECORD_COMMANDS: dict[str, Callable[[Path, Path], list[str]]] = {
     "report": lambda record, tmp: ["report", record, "--out", tmp / "new"],
     "report-folder": lambda record, tmp: ["report", record.parent, "--out", tmp / "new"],
-    "payload-calibrate": lambda record, tmp: ["payload", "calibrate", record, "--out", tmp / "new" / "cal.yaml"],
+    "payload-calibrate": lambda record, tmp: ["payload", "calibrate", record, "--write", tmp / "new" / "cal.yaml"],
 }
 
 

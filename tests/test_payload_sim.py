@@ -50,7 +50,7 @@ def test_calibrate_command_writes_a_calibration_the_estimator_loads(holds, tmp_p
     for i, record in enumerate(hold_records(holds, ScoopConfig())):
         record.save(tmp_path / "records" / f"hold{i}.npz")
     out = tmp_path / "calib.yaml"
-    assert main(["payload", "calibrate", str(tmp_path / "records"), "--out", str(out)]) == 0
+    assert main(["payload", "calibrate", str(tmp_path / "records"), "--write", str(out)]) == 0
     estimator = P.PayloadEstimator.from_yaml(out)
     assert estimator.calibration.fit["samples"] == len(holds)
     # one pose: the offsets and the lever arm seen there reproduce the masses

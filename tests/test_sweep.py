@@ -97,6 +97,20 @@ def test_without_ray_the_command_exits_2_naming_the_extra(tmp_path, monkeypatch,
     assert "pip install 'autoscoop[sweep]'" in capsys.readouterr().err
 
 
+def test_resume_takes_the_sweeps_folder_and_the_old_spelling_is_refused_naming_it(tmp_path, capsys):
+    folder = tmp_path / "sweep"
+    assert main(["sweep", "--out", str(folder), "--resume"]) == 2
+    assert f"--resume takes the sweep's folder: --resume {folder} (not --out {folder} --resume)" in \
+        capsys.readouterr().err
+    assert main(["sweep", "--resume", str(folder)]) == 2
+    assert f"--resume {folder}: holds no sweep to resume" in capsys.readouterr().err
+    assert main(["sweep", "--resume", str(folder), "--out", str(tmp_path / "other")]) == 2
+    assert "a resumed sweep stays in its folder" in capsys.readouterr().err
+    assert main(["sweep", "--space", str(_write(tmp_path / "space.yaml", SPACE)), "--trials", "2",
+                 "--episodes", "4"]) == 2
+    assert "--out must be given to start a sweep" in capsys.readouterr().err
+
+
 def test_an_address_where_no_ray_head_listens_fails_at_once(tmp_path, capsys):
     pytest.importorskip("ray.tune", reason="Ray Tune is not installed (pip install 'autoscoop[sweep]')")
     with socket.socket() as closed:  # a port nothing listens on
@@ -291,10 +305,10 @@ def test_kill_9_of_the_driver_then_resume_finishes_the_rest(tmp_path, ray_env, c
     assert not _wait_for_no_ray(root, within_s=5.0)
     kept = _snapshot(finished[0])
 
-    assert main(["sweep", "--out", str(out), "--resume", "--trials", "4"]) == 2  # not the recorded settings
+    assert main(["sweep", "--resume", str(out), "--trials", "4"]) == 2  # not the recorded settings
     assert "does not match" in capsys.readouterr().err
 
-    done = _sweep(["--out", str(out), "--resume", "--num-cpus", "1", "--space", str(space)], ray_env)
+    done = _sweep(["--resume", str(out), "--num-cpus", "1", "--space", str(space)], ray_env)
     assert "resuming the sweep" in done.stdout, done.stdout
     assert _snapshot(finished[0]) == kept, "a finished trial was trained again"
     rows = _check_outputs(out, trials=2, episodes=16)

@@ -11,7 +11,7 @@ from autoscoop.core.config import save_yaml
 
 def register(subparsers: argparse._SubParsersAction) -> None:
     parser = subparsers.add_parser("config", help="show or write the configuration", description=__doc__)
-    parser.add_argument("--write", type=Path, help="write the (overridden) config to this YAML file")
+    parser.add_argument("--write", type=Path, metavar="FILE.yaml", help="write the (overridden) config to this YAML file")
     options.add_config_args(parser)
     parser.set_defaults(func=run)
 

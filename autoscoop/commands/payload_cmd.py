@@ -1,4 +1,4 @@
-"""``autoscoop payload calibrate RECORDS... --out calib.yaml``: fit the torque-to-mass estimator to records.
+"""``autoscoop payload calibrate RECORDS... --write calib.yaml``: fit the torque-to-mass estimator to records.
 
 The records (``.npz`` episode records, or folders of them) must hold static moments: the arm still,
 the bucket clear of the pile, ``mass_in_bucket_kg`` the known payload (counted in simulation, weighed
@@ -30,10 +30,13 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     calibrate = actions.add_parser("calibrate", help="fit torque offsets and the payload lever arm from records",
                                    description=__doc__)
     calibrate.add_argument("records", nargs="+", type=Path, help="episode records (.npz) or folders of them")
-    calibrate.add_argument("--out", type=Path, default=Path("payload_calibration.yaml"), metavar="FILE.yaml",
-                           help="calibration YAML to write (default payload_calibration.yaml)")
-    calibrate.add_argument("--prior", type=Path, help="calibration to start from (its gravity and the lever "
-                                                      "arm's unobservable direction are kept)")
+    calibrate.add_argument("--write", type=Path, default=Path("payload_calibration.yaml"), metavar="FILE.yaml",
+                           help="write the calibration to this YAML file (default payload_calibration.yaml)")
+    options.retire_option(calibrate, "--out", "the calibration file to write is --write FILE.yaml (--out is a folder "
+                                              "in every command)")
+    calibrate.add_argument("--prior", type=Path, metavar="FILE.yaml",
+                           help="calibration to start from (its gravity and the lever arm's unobservable direction "
+                                "are kept)")
     calibrate.add_argument("--max-joint-step", type=options.NumberIn(0.0, 1.0, "rad"), default=STATIC_JOINT_STEP_RAD, metavar="RAD",
                            help="in records not marked static: use steps whose joints moved less than this "
                                 f"since the previous step (default {STATIC_JOINT_STEP_RAD} rad)")
@@ -91,7 +94,7 @@ def run_calibrate(args: argparse.Namespace) -> int:
                                   samples["tilt_torque_nm"], samples["mass_kg"], prior=prior)
     fit = dict(calibration.fit, records=[str(p) for p in paths])
     calibration = replace(calibration, fit=fit)
-    calibration.save(args.out)
+    calibration.save(args.write)
     x, z = calibration.payload_com_in_bucket_m
     print(f"{n} static samples from {len(paths)} record(s), masses {fit['mass_range_kg'][0]:.2f}"
           f"-{fit['mass_range_kg'][1]:.2f} kg")
@@ -102,7 +105,7 @@ def run_calibrate(args: argparse.Namespace) -> int:
     if fit["rank"] < 4:
         print("note: the samples do not tell the lever arm's two components apart (one bucket angle?); "
               "the unseen one is the prior's. Hold the bucket at several angles to fit both.")
-    print(f"wrote {args.out}")
+    print(f"wrote {args.write}")
     return 0
 
 

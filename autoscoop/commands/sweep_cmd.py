@@ -2,8 +2,8 @@
 
 Each trial is an ordinary ``autoscoop train`` run (``OUT/runs/TRIAL_ID``, loadable by ``eval --policy``) that
 reports its periodic evaluations to Tune. Ray starts embedded on this machine, or the trials run on the
-Ray cluster at ``--address``. ``--resume`` continues an interrupted sweep (its driver killed, kill -9
-included) without training its finished trials again. At the end: ``OUT/sweep.csv``, ``OUT/report.md``
+Ray cluster at ``--address``. ``--resume DIR`` continues the interrupted sweep in DIR (its driver killed,
+kill -9 included) without training its finished trials again. At the end: ``OUT/sweep.csv``, ``OUT/report.md``
 (trials ranked by score), ``OUT/sweep.png`` (score against each swept setting) and the best trial's actor
 as ``OUT/best.safetensors`` (+ ``.json``). Needs the ``sweep`` extra (``pip install 'autoscoop[sweep]'``);
 see docs/sweep.md.
@@ -28,6 +28,11 @@ OUTPUTS = ("sweep.csv", "report.md", "sweep.png", "best.safetensors", "best.json
 """what the sweep writes into ``--out`` at the end."""
 
 
+RESUME_WITHOUT_FOLDER = True
+"""``--resume`` given no folder (not a string: argparse would parse one as a path): the old spelling,
+``--out DIR --resume``, refused naming the new one."""
+
+
 def register(subparsers: argparse._SubParsersAction) -> None:
     parser = subparsers.add_parser("sweep", help="train trials over a search space on Ray Tune and rank them",
                                    description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -37,12 +42,13 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument("--trials", type=options.POSITIVE, metavar="N",
                         help="trials in all: a multiple of the space's grid (seeds x grid lists)")
     options.add_episodes_option(parser, default=None, what="training episodes per trial")
-    options.add_out_option(parser, None, "the sweep's folder (trials' run directories, Tune's state, the report); "
-                                 "on a cluster it must be shared storage, at the same path on every node", required=True)
+    options.add_out_option(parser, None, "the new sweep's folder (trials' run directories, Tune's state, the "
+                                 "report); on a cluster it must be shared storage, at the same path on every node")
     parser.add_argument("--address", metavar="HOST:PORT",
                         help="run on this Ray cluster (`ray start --head` prints it); default: Ray embedded here")
-    parser.add_argument("--resume", action="store_true",
-                        help="continue the interrupted sweep in --out; finished trials are not trained again")
+    parser.add_argument("--resume", type=Path, nargs="?", const=RESUME_WITHOUT_FOLDER, metavar="RUN_DIR",
+                        help="continue the interrupted sweep in this folder (the --out it started with), as train "
+                             "--resume does a run; finished trials are not trained again")
     options.add_json_option(parser, "the table and the sweep's facts, too,")
     parser.add_argument("--num-cpus", type=options.POSITIVE, metavar="N",
                         help="CPUs embedded Ray may use, one per trial (default: all of this machine's)")
@@ -67,6 +73,7 @@ def run(args: argparse.Namespace) -> int:
     from autoscoop.training.sweep_space import check_episodes, load_space, plan_trials, space_from_dict  # noqa: PLC0415
 
     _check_cluster_options(args)
+    _resolve_folder(args)
     if args.resume:
         plan = read_plan(args.out)
         given = load_space(args.space) if args.space else None
@@ -75,7 +82,7 @@ def run(args: argparse.Namespace) -> int:
         space_file = plan.get("space_file", "")
     else:
         missing = [option for option, value in (("--space", args.space), ("--trials", args.trials),
-                                                ("--episodes", args.episodes)) if value is None]
+                                                ("--episodes", args.episodes), ("--out", args.out)) if value is None]
         if missing:
             raise ValueError(f"{', '.join(missing)} must be given to start a sweep (--resume continues one)")
         space, trials, episodes, space_file = load_space(args.space), args.trials, args.episodes, str(args.space)
@@ -99,15 +106,27 @@ def run(args: argparse.Namespace) -> int:
     return _write_outputs(args, result, space)
 
 
+def _resolve_folder(args: argparse.Namespace) -> None:
+    """``--resume DIR`` names the sweep's folder: ``args.out`` becomes it (a different ``--out`` is refused)."""
+    if args.resume is RESUME_WITHOUT_FOLDER:
+        shown = args.out or "DIR"
+        raise ValueError(f"--resume takes the sweep's folder: --resume {shown} (not --out {shown} --resume)")
+    if args.resume is None:
+        return
+    if args.out is not None and args.out.resolve() != args.resume.resolve():
+        raise ValueError(f"--out {args.out} and --resume {args.resume}: a resumed sweep stays in its folder; "
+                         f"give --resume {args.resume} alone")
+    args.out = args.resume
+
+
 def _check_cluster_options(args: argparse.Namespace) -> None:
     if args.address and args.num_cpus is not None:
         raise ValueError("--num-cpus is for embedded Ray only; a cluster's nodes give their CPUs to `ray start`")
 
 
 def _command_line(args: argparse.Namespace) -> str:
-    parts = ["autoscoop sweep", f"--out {args.out}"]
+    parts = ["autoscoop sweep", f"--resume {args.resume}" if args.resume else f"--out {args.out}"]
     parts += [f"--space {args.space}"] if args.space else []
-    parts += ["--resume"] if args.resume else []
     return " ".join(parts)
 
 

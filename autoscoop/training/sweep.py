@@ -122,7 +122,7 @@ def read_plan(out: Path) -> dict[str, Any]:
     """
     path = Path(out) / PLAN_FILE
     if not path.is_file():
-        raise ValueError(f"--out {out}: holds no sweep to resume (no {PLAN_FILE}); start one without --resume")
+        raise ValueError(f"--resume {out}: holds no sweep to resume (no {PLAN_FILE}); start one with --out {out}")
     plan = read_json(path, "sweep plan", MAX_PLAN_BYTES)
     if not isinstance(plan, dict) or plan.get("format") != PLAN_FORMAT:
         raise ValueError(f"{path}: not an autoscoop sweep plan (format {PLAN_FORMAT!r})")
@@ -153,8 +153,8 @@ def start_sweep(args: SweepArgs) -> SweepResult:
     num_samples = plan_trials(args.space, args.trials)
     check_episodes(args.space, args.episodes)
     if (out / PLAN_FILE).exists():
-        raise ValueError(f"--out {args.out} already holds a sweep ({PLAN_FILE}); use --resume to continue it, "
-                         "or another --out")
+        raise ValueError(f"--out {args.out} already holds a sweep ({PLAN_FILE}); use --resume {args.out} to continue "
+                         "it, or another --out")
     out.mkdir(parents=True, exist_ok=True)
     plan = {"format": PLAN_FORMAT, "autoscoop_version": __version__, "space_file": args.space_file,
             "space": args.space.to_dict(), "trials": args.trials, "episodes": args.episodes,
