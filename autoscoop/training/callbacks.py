@@ -25,9 +25,20 @@ from autoscoop.envs.scoop import make_scoop_env
 from autoscoop.training.checkpoints import actor_meta, save_checkpoint, save_safe_actor, write_run_json
 from autoscoop.training.factories import set_noise_scale
 
+
+def cycle_time_of(info: dict[str, Any]) -> float:
+    """An episode's cycle time from its last ``info``: seconds from its start until success; NaN when it did not
+    succeed (the environment times reaching the terminal point, loaded or not: an empty arrival is no cycle)."""
+    if not info.get("success"):
+        return math.nan
+    cycle = float(info.get("cycle_time_s", math.nan))
+    return cycle if math.isfinite(cycle) else math.nan
+
+
 CSV_FIELDS = ["episode", "reward", "fill_factor", "cycle_time_s", "success", "steps", "spilled", "physics_error",
               "wall_s"]
-"""The columns of ``episodes.csv``, one row per training episode."""
+"""The columns of ``episodes.csv``, one row per training episode (``cycle_time_s``: ``nan`` where it did not
+succeed, :func:`cycle_time_of`)."""
 EVALUATION_FIELDS = ["episode", "delivered_fill", "fill_factor", "success", "cycle_time_s"]
 """The columns of ``evaluations.csv``, one row per periodic evaluation."""
 
@@ -109,7 +120,7 @@ class EpisodeLogger(BaseCallback):
         """Log the episode environment ``env_index`` just ended (its last ``info``); evaluate, checkpoint when due."""
         self.done += 1
         row = {"episode": self.done, "reward": self.returns.pop(env_index, 0.0), "fill_factor": info["fill_factor"],
-               "cycle_time_s": info.get("cycle_time_s", math.nan), "success": int(info["success"]),
+               "cycle_time_s": cycle_time_of(info), "success": int(info["success"]),
                "steps": int(round(info["elapsed_s"] / self.control_period_s)), "spilled": info["spilled"],
                "physics_error": int(info["physics_error"]), "wall_s": round(self.wall_s(), 2)}
         self.csv.writerow(row)
