@@ -158,3 +158,47 @@ def test_not_a_log_and_no_commands_are_clear_errors(mcap_log, tmp_path, capsys):
                  "--out", str(tmp_path / "o")]) == 2
     assert "--schedule own" in capsys.readouterr().err
     assert main(["replay", str(sensors_only), "--policy", "heuristic", "--out", str(tmp_path / "o")]) == 0
+
+
+def test_a_replay_whose_every_update_is_a_fault_exits_3_unless_allowed(mcap_log, tmp_path, capsys):
+    """The log's joints are in radians; a robot file that calibrates raw potentiometer readings reads them as
+    far outside the joints' range, so every update stops the robot: nothing was replayed."""
+    from pathlib import Path
+
+    raw_robot = Path(__file__).resolve().parents[1] / "docs" / "robot.example.yaml"
+    argv = ["replay", str(mcap_log), "--policy", "heuristic", "--robot", str(raw_robot), "--out", str(tmp_path / "o")]
+    assert main(argv) == 3
+    err = capsys.readouterr().err
+    assert "every update was a fault" in err and "outside" in err and "--robot FILE" in err, err
+    assert main([*argv, "--allow-empty"]) == 0
+
+
+def test_without_robot_the_replay_takes_the_robot_file_the_log_keeps(tmp_path, capsys):
+    """A log that keeps the robot file (``~/robot``) is read with it: here one that renames the odometry topic."""
+    from rosbags.highlevel import AnyReader
+
+    from autoscoop.deploy.robot_config import robot_config_from_dict, robot_yaml
+    from autoscoop.deploy.ros2.messages import MESSAGE_TYPES, String
+
+    source = tmp_path / "plain.mcap"
+    write_log(source, steps=60)
+    renamed = tmp_path / "renamed.mcap"
+    robot = robot_config_from_dict({"topics": {"odom": "wheel_odom"}})
+    log = McapLog(renamed)
+    log.write("/autoscoop_controller/robot", String(robot_yaml(robot)), START_NS - 1)
+    with AnyReader([source]) as reader:
+        for connection, t, raw in reader.messages():
+            key = next(k for k in MESSAGE_TYPES if connection.topic == "/" + getattr(CONFIG.topics, k))
+            message = MESSAGE_TYPES[key].deserialize(bytes(raw))
+            topic = "/wheel_odom" if key == "odom" else connection.topic
+            log.write(topic, message, t)
+    log.close()
+    out = tmp_path / "out"
+    assert main(["replay", str(renamed), "--policy", "heuristic", "--out", str(out)]) == 0
+    printed = capsys.readouterr().out
+    assert "robot file /autoscoop_controller/robot of the log" in printed, printed
+    assert (out / "robot.yaml").read_text() == robot_yaml(robot)
+    assert main(["replay", str(renamed), "--policy", "heuristic", "--robot", str(out / "robot.yaml"),
+                 "--out", str(tmp_path / "again")]) == 0
+    assert main(["replay", str(source), "--policy", "heuristic", "--out", str(tmp_path / "plain")]) == 0
+    assert "robot file built-in (the log keeps none)" in capsys.readouterr().out

@@ -8,7 +8,9 @@ log times with their stamps (the watchdog judging them as on the robot), and wri
   what the policy would have commanded, with the watchdog's verdict (``mode``, ``reason``);
 - ``replay.png``: both against time, the spans where the controller stopped the robot marked.
 
-Topic names come from the robot YAML (--robot), relative to --namespace. Updates happen at the logged
+Topic names, joint units and limits come from the robot file: --robot FILE, or else the one the log was
+recorded with (``ros2 controller|sim --bag`` and ``ros sim --bag`` keep it, on ``~/robot``), or else the
+built-in robot; names are relative to --namespace. Updates happen at the logged
 commands' times (--schedule recorded, the default when the log has cmd_vel: on a log of
 ``ros2 controller --bag`` the same policy reproduces the commands sent) or at the controller's own
 control periods and watchdog expiries (--schedule own).
@@ -41,6 +43,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                              "controller's own control periods")
     options.add_out_option(parser, Path("out/replay"), "folder for replay.csv and replay.png")
     options.add_json_option(parser, "the summary (largest differences, verdicts)")
+    options.add_allow_empty_option(parser)
     parser.set_defaults(func=run)
 
 
@@ -51,6 +54,9 @@ def run(args: argparse.Namespace) -> int:
     check_output_dir(args.out, "--out")
     if args.json:
         check_output_file(args.json, "--json")
+    robot_from = "--robot"
+    if args.robot is None:
+        robot_from, args = robot_of_the_log(args)
     core = build_controller(args)
     core.log = lambda level, text: None  # the verdicts are in the CSV, not one line per transition
     topics = core.config.topics
@@ -81,7 +87,8 @@ def run(args: argparse.Namespace) -> int:
         figure = str(args.out / "replay.png")
     except ImportError:
         figure = None
-    print(f"{args.log}: {len(log)} messages, {len(rows)} updates ({schedule} schedule), policy {args.policy}")
+    print(f"{args.log}: {len(log)} messages, {len(rows)} updates ({schedule} schedule), policy {args.policy}, "
+          f"robot file {robot_from}")
     for channel, value in biggest.items():
         print(f"  largest |sent - replayed| {channel}: " + ("n/a" if math.isnan(value) else f"{value:.3g}"))
     print("  verdicts: " + ", ".join(f"{mode} {count}" for mode, count in verdicts.items()))
@@ -90,5 +97,34 @@ def run(args: argparse.Namespace) -> int:
         write_json(args.json, {"log": str(args.log), "policy": args.policy, "schedule": schedule,
                                "messages": len(log), "updates": len(rows),
                                "max_difference": {k: (None if math.isnan(v) else v) for k, v in biggest.items()},
-                               "verdicts": verdicts, "csv": str(args.out / "replay.csv"), "figure": figure})
+                               "verdicts": verdicts, "csv": str(args.out / "replay.csv"), "figure": figure,
+                               "robot_file": robot_from})
+    if not rows:
+        return options.nothing_done("replay", f"no update: {args.log} has no commands and no inputs the "
+                                              f"controller could act on", args.allow_empty)
+    faults = [r for r in rows if r.mode == "fault"]
+    if faults and all(r.mode in ("fault", "none") for r in rows):  # "none": a logged command before any update
+        return options.nothing_done("replay", f"every update was a fault ({len(faults)} of {len(rows)}; the last: "
+                                              f"{faults[-1].reason}); check the robot file's units and topics "
+                                              f"(--robot FILE)", args.allow_empty)
     return 0
+
+
+def robot_of_the_log(args: argparse.Namespace) -> tuple[str, argparse.Namespace]:
+    """Without ``--robot``: the robot file the log keeps, written beside --out and named in ``args.robot``
+    (the built-in robot where the log keeps none); where it came from, in words."""
+    from autoscoop.core.safe_files import write_text_atomically  # noqa: PLC0415
+    from autoscoop.deploy import replay  # noqa: PLC0415
+    from autoscoop.deploy.robot_config import robot_from_yaml  # noqa: PLC0415
+
+    try:
+        found = replay.robot_file_in_log(args.log, args.namespace)
+    except ImportError:
+        return "built-in", args  # the read below says the extra is missing
+    if found is None:
+        return "built-in (the log keeps none)", args
+    topic, text = found
+    robot_from_yaml(text, f"{args.log} ({topic})")  # checked before it is written anywhere
+    copy = args.out / "robot.yaml"
+    write_text_atomically(copy, text)
+    return f"{topic} of the log (copied to {copy})", argparse.Namespace(**{**vars(args), "robot": copy})

@@ -68,6 +68,7 @@ def add_sim_options(sim: argparse.ArgumentParser) -> None:
     sim.add_argument("--wait-s", type=options.POSITIVE_SECONDS, default=60.0,
                      help="give up when no controller appears within this long, s (default 60)")
     options.add_config_args(sim)
+    options.add_allow_empty_option(sim)
 
 
 ROBOT_HELP = (f"{options.ROBOT_FILE_HELP}; default: the built-in robot (joints lift and tilt read in radians, "
@@ -235,8 +236,8 @@ def simulate(args: argparse.Namespace, command: str, run_node: Callable[[Any], t
     finally:
         bridge.close()
     if not results:
-        print("no episode finished")
-        return 1
+        return options.nothing_done(command, "no episode finished" + (
+            "" if stats.commands_received else ": no command arrived from the controller"), args.allow_empty)
     summary = summarize(results, config, label)
     summary["ros"] = {"sensor_period_s": bridge.sensor_period_s, "delay_s": config.sensor.delay_s,
                       "noise": vars(bridge.noise), **stats.as_dict()}
@@ -245,5 +246,23 @@ def simulate(args: argparse.Namespace, command: str, run_node: Callable[[Any], t
     if args.json:
         write_json(args.json, summary)
         print(f"wrote {args.json}")
-    return 0
+    why = nothing_achieved(results, stats.commands_received)
+    return options.nothing_done(command, why, args.allow_empty) if why else 0
+
+
+def nothing_achieved(results: list, commands_received: int) -> str | None:
+    """Why a simulator's run achieved nothing, or ``None`` when a scoop reached the terminal point.
+
+    Args:
+        results: the episodes' outcomes (:class:`~autoscoop.envs.outcome.EpisodeOutcome`).
+        commands_received: the commands that arrived from the controller over the whole run.
+    """
+    if commands_received == 0:
+        return (f"no command arrived from the controller in {len(results)} episode(s): check that it runs in "
+                f"the same namespace and domain and subscribes to the simulator's topics")
+    if not any(result.reached for result in results):
+        fill = sum(result.fill_factor for result in results) / len(results)
+        return (f"no scoop reached the terminal point in {len(results)} episode(s) (mean fill {fill:.3f}); the "
+                f"controller's status topic says why it stopped, e.g. a reading it judged a fault")
+    return None
 

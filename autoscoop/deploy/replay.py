@@ -120,6 +120,44 @@ def read_log(path: str | Path, topics: TopicsSection, needed: Sequence[str], nam
     return log
 
 
+ROBOT_TOPIC_NODES = ("autoscoop_controller", "autoscoop_sim")
+"""The nodes whose ``~/robot`` (std_msgs/String, the robot file as YAML) a log may hold, the controller's first."""
+
+
+def robot_file_in_log(path: str | Path, namespace: str = "/") -> tuple[str, str] | None:
+    """The robot file a log was recorded with: ``(topic, YAML text)`` of the last ``~/robot`` message of the
+    controller (or else the simulator) in ``namespace``; ``None`` when the log holds none.
+
+    Raises:
+        LogError: the log cannot be read.
+    """
+    from rosbags.highlevel import AnyReader, AnyReaderError  # noqa: PLC0415 - the ros2 extra
+
+    from autoscoop.deploy.ros2.messages import String  # noqa: PLC0415
+
+    path = Path(path)
+    if not path.exists():
+        raise LogError(f"{path}: no such file or folder")
+    try:
+        with AnyReader([path]) as reader:
+            for node in ROBOT_TOPIC_NODES:
+                topic = _expand(f"{node}/robot", namespace)
+                wanted = [c for c in reader.connections if c.topic == topic and c.msgtype == "std_msgs/msg/String"]
+                if not wanted:
+                    continue  # (no connections would read every message)
+                text = None
+                for connection, _, raw in reader.messages(connections=wanted):
+                    if getattr(connection.ext, "serialization_format", None) == "cdr":
+                        text = String.deserialize(bytes(raw)).data
+                    else:
+                        text = reader.deserialize(raw, connection.msgtype).data
+                if text is not None:
+                    return topic, text
+    except (AnyReaderError, OSError, KeyError, ValueError) as error:
+        raise LogError(f"{path}: not a readable ROS 1 bag, ROS 2 bag or MCAP file ({error})") from None
+    return None
+
+
 @dataclass(frozen=True)
 class ReplayedCommand:
     """One update of the replayed core: what was commanded then (NaN where the log has none) and what the
