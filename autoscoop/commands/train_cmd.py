@@ -100,12 +100,14 @@ def run(args: argparse.Namespace) -> int:
                                   recipe=args.recipe))
     if selection_pending(run_dir):
         select_kept_policy(run_dir, progress=not args.no_progress)
-    finish_run(run_dir, started)
+    finish_run(run_dir, started, resumed=args.resume is not None)
+    for line in kept_policy_lines(run_dir):
+        print(line)
     print(f"run directory: {run_dir}")
     return 0
 
 
-def finish_run(run_dir: Path, started: float) -> None:
+def finish_run(run_dir: Path, started: float, resumed: bool = False) -> None:
     """The kept policy as ONNX beside it (``policy.onnx``, checked against the torch actor), and the command's
     wall time in ``run.json``: ``command_wall_s`` adds this call's time (s, from ``started``, a
     ``time.monotonic()``) to what earlier calls on the run (``--resume``) recorded; ``export`` holds the
@@ -131,7 +133,75 @@ def finish_run(run_dir: Path, started: float) -> None:
         if export:
             info["export"] = export
         write_run_json(run_dir, info)
-    print(f"command wall time: {info['command_wall_s']:.0f} s (training {info.get('wall_s', 0):.0f} s)")
+    print(timing_line(time.monotonic() - started, float(info.get("wall_s", 0.0)), resumed))
+
+
+def _seconds(value: float) -> str:
+    return f"{value:.1f} s" if value < 10 else f"{value:.0f} s"
+
+
+def timing_line(session_s: float, training_s: float, resumed: bool) -> str:
+    """This command's wall time and the run's training time, in one sentence (s; training counts every session
+    of a resumed run, to its last checkpoint for one that was killed)."""
+    if resumed:
+        return (f"this session took {_seconds(session_s)}; the run's training time so far is {_seconds(training_s)} "
+                "(this session and the earlier ones together)")
+    return f"this session took {_seconds(session_s)}, of which training took {_seconds(training_s)}"
+
+
+def kept_policy_lines(run_dir: Path) -> list[str]:
+    """What the run kept as its policy (``policy.*``), in words: which snapshot, from which episode, and its
+    validation figures (the stress suite's when the recipe's selection chose it, else its periodic evaluation's:
+    fill factor, success, cycle time of the successes, delivered fill). Says plainly when the run kept no policy
+    that scoops (the best evaluation scored 0) or no evaluated one (no evaluation ran)."""
+    import csv  # noqa: PLC0415
+    import json  # noqa: PLC0415
+    import math  # noqa: PLC0415
+
+    from autoscoop.training.callbacks import PolicyEvaluator  # noqa: PLC0415 - torch is slow to import
+    from autoscoop.training.checkpoints import SELECTION_FILE, read_run_json  # noqa: PLC0415
+
+    if not (run_dir / "run.json").is_file():
+        return []
+    info = read_run_json(run_dir)
+    episode = info.get("best_episode")
+    if episode is None:
+        return ["kept policy: none evaluated; no periodic evaluation ran (--eval-every 0), so policy.* is the "
+                "policy at the end of training, unscored: `autoscoop eval --policy RUN` scores it"]
+    evaluations = []
+    if (run_dir / "evaluations.csv").is_file():
+        with open(run_dir / "evaluations.csv", newline="") as handle:
+            evaluations = list(csv.DictReader(handle))
+    rows = [row for row in evaluations if int(row["episode"]) == int(episode)]
+    seeds = f"{info.get('eval_episodes', 10)} episodes from seed {PolicyEvaluator.SEED}"
+    which = (f"the best of {len(evaluations)} periodic evaluations" if len(evaluations) > 1
+             else "its only periodic evaluation, at the end of training")
+    lines = []
+    if rows:
+        row = rows[-1]
+        cycle = float(row["cycle_time_s"]) if row["cycle_time_s"] not in ("", "nan") else math.nan
+        shown = "no cycle time (none succeeded)" if math.isnan(cycle) else f"cycle time {cycle:.2f} s (successes)"
+        lines.append(f"kept policy: the snapshot of episode {episode}, {which} ({seeds}): fill factor "
+                     f"{float(row['fill_factor']):.3f}, success {float(row['success']):.2f}, {shown}, delivered fill "
+                     f"{float(row['delivered_fill']):.3f}")
+    selection = run_dir / SELECTION_FILE
+    if info.get("selected_episode") is not None and selection.is_file():
+        chosen = info["selected_episode"]
+        record = json.loads(selection.read_text())
+        figures = next((c for c in record.get("candidates", []) if c.get("name") == f"episode {chosen}"), None)
+        if figures is not None:
+            nominal = figures.get("by_case", {}).get("nominal", {})
+            settings = record.get("settings", {})
+            first = int(settings.get("seed", 0))
+            lines = [f"kept policy: the snapshot of episode {chosen}, chosen on the stress suite ("
+                     f"{settings.get('episodes')} episodes a case from seed {first}): {figures['cases_passed']} of "
+                     f"{figures['cases']} cases hold, mean delivered fill {figures['mean_delivered_fill']:.3f}"
+                     + (f"; nominal: fill factor {nominal['fill_factor_mean']:.3f}, success "
+                        f"{nominal['success_rate']:.2f}" if nominal else "")]
+    if float(info.get("best_score", 0.0)) <= 0.0 and info.get("selected_episode") is None:
+        lines.append(f"the run kept no policy that scoops: its best periodic evaluation scored 0 (no episode "
+                     f"succeeded); train for more episodes (this run had {info.get('episodes')})")
+    return lines
 
 
 def selection_pending(run_dir: Path) -> bool:
