@@ -111,7 +111,8 @@ def finish_run(run_dir: Path, started: float, resumed: bool = False) -> None:
     """The kept policy as ONNX beside it (``policy.onnx``, checked against the torch actor), and the command's
     wall time in ``run.json``: ``command_wall_s`` adds this call's time (s, from ``started``, a
     ``time.monotonic()``) to what earlier calls on the run (``--resume``) recorded; ``export`` holds the
-    parity check. Without onnx installed, or for an actor the safe format cannot hold, no file is written."""
+    parity check. Without onnx installed, or for an actor the safe format cannot hold, no file is written. Prints
+    :func:`timing_line` (``resumed``: this call continued a run started before)."""
     from autoscoop.agents.policy_files import ActorPolicy, PolicyFileError  # noqa: PLC0415 - torch is slow to import
     from autoscoop.commands.export_cmd import export_policy  # noqa: PLC0415
     from autoscoop.training.checkpoints import lock_run_dir, read_run_json, write_run_json  # noqa: PLC0415
