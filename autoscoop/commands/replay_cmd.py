@@ -54,6 +54,9 @@ def run(args: argparse.Namespace) -> int:
     check_output_dir(args.out, "--out")
     if args.json:
         check_output_file(args.json, "--json")
+    from autoscoop.core.config import ScoopConfig, parse_set_args  # noqa: PLC0415
+
+    ScoopConfig().with_overrides(parse_set_args(args.overrides))  # a bad --set is refused before the log is read
     robot_from = "--robot"
     if args.robot is None:
         robot_from, args = robot_of_the_log(args)
