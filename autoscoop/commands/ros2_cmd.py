@@ -76,7 +76,7 @@ time, obeys cmd_vel and the joint commands, and starts each episode on the scoop
 
 def add_bag_option(parser: argparse.ArgumentParser, what: str) -> None:
     """``--bag FILE.mcap``: the node's topics as a ROS 2 bag (MCAP, CDR, ROS 2 schemas)."""
-    parser.add_argument("--bag", type=mcap_path, metavar="FILE.mcap",
+    parser.add_argument("--bag", type=mcap_path, metavar="FILE",
                         help=f"record the node's topics to this MCAP file (a ROS 2 bag): {what}")
 
 

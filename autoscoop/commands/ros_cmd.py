@@ -34,7 +34,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     sim = nodes.add_parser("sim", help="the MuJoCo scene behind the robot's topics (like Gazebo)",
                            description=_SIM_DOC, formatter_class=argparse.RawDescriptionHelpFormatter)
     add_sim_options(sim)
-    sim.add_argument("--bag", type=bag_path, metavar="FILE.bag",
+    sim.add_argument("--bag", type=bag_path, metavar="FILE",
                      help="record the node's topics to this ROS 1 bag (needs the ros2 extra's rosbags): every "
                           "sensor message and scoop flag as published, every command as it arrived")
     sim.add_argument("remap", nargs="*", type=ros_remap, metavar="NAME:=NEW", help="ROS remappings")
