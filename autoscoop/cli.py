@@ -19,6 +19,7 @@ COMMANDS = [
     "autoscoop.commands.stress_cmd",
     "autoscoop.commands.shift_cmd",
     "autoscoop.commands.train_cmd",
+    "autoscoop.commands.adapt_cmd",
     "autoscoop.commands.sweep_cmd",
     "autoscoop.commands.bench_cmd",
     "autoscoop.commands.config_cmd",

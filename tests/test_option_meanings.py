@@ -70,6 +70,7 @@ MEANINGS: dict[str, Meaning] = {
     "--checkpoint-every": Meaning("episodes between checkpoints", type="AtLeast", metavar="N",
                                   words=("checkpoint",)),
     "--eval-every": Meaning("episodes between evaluations", type="AtLeast", metavar="N", words=("evaluation",)),
+    "--eval-episodes": Meaning("episodes per periodic evaluation", type="AtLeast", metavar="N", words=("evaluation",)),
     "--no-progress": Meaning("no progress bar", action="store_true", words=("progress",)),
     "--check": Meaning("check the configuration and the policy, and exit", action="store_true", words=("check",)),
     "--label": Meaning("the policy's name in the summary", words=("name",)),

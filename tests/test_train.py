@@ -308,7 +308,7 @@ def test_a_run_directory_is_locked_while_a_process_writes_it(tmp_path, monkeypat
             raise RuntimeError("simulated failure")
         return run_dir
 
-    monkeypatch.setattr(train_mod, "_run", fake_run)
+    monkeypatch.setattr(train_mod, "train_model", fake_run)
     new = tmp_path / "new"
     assert train_mod.train(train_mod.TrainArgs(episodes=1, out=new, progress=False)) == new
     assert seen == {"pid": os.getpid(), "free": False}
@@ -332,7 +332,7 @@ def test_resume_refuses_episodes(tmp_path, monkeypatch, capsys):
     save_yaml(ScoopConfig(), run_dir / "config.yaml")
     (run_dir / "hyperparams.yaml").write_text(yaml.safe_dump(load_hyperparams("ddpg")))
     resumed = []
-    monkeypatch.setattr(train_mod, "_run", lambda run_dir, config, spec, info, **kwargs: resumed.append(info) or run_dir)
+    monkeypatch.setattr(train_mod, "train_model", lambda run_dir, config, spec, info, **kwargs: resumed.append(info) or run_dir)
     assert main(["train", "--resume", str(run_dir), "--episodes", "20", "--no-progress"]) == 2
     err = capsys.readouterr().err
     assert "--episodes" in err and "keeps the episode count" in err

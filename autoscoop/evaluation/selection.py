@@ -21,7 +21,7 @@ from typing import Any
 import numpy as np
 
 from autoscoop.core.config import ScoopConfig
-from autoscoop.evaluation.stress import StressRow, run_stress
+from autoscoop.evaluation.stress import CASES, StressCase, StressRow, run_stress
 
 SHORTFALL_SCALES = {"fill_factor_mean": 1.0, "volumetric_fill_mean": 1.0, "success_rate": 1.0,
                     "overload_rate": 1.0, "cycle_time_mean": 5.0}
@@ -101,4 +101,67 @@ def rank_candidates(candidates: Sequence[tuple[str, Path]], episodes: int, seed:
         ranked.append(Ranked(name, Path(path), rows))
     order = sorted(range(len(ranked)), key=lambda i: (round(ranked[i].shortfall, 9),
                                                       -ranked[i].mean_delivered_fill, i))
+    return [ranked[i] for i in order]
+
+
+REGRESSION_TOLERANCE = 0.03
+"""how far a fine-tuned policy may fall below the policy it started from, in success and in volumetric fill, in a
+case that policy holds, before it counts as having lost ground."""
+
+
+def regression_from(rows: Sequence[StressRow], reference: Sequence[StressRow],
+                    tolerance: float = REGRESSION_TOLERANCE) -> float:
+    """How far ``rows`` fall below ``reference`` (the same cases) where the reference holds: per case, the success
+    and the volumetric fill lost beyond ``tolerance``, each in units of 0.01, summed (0: no case lost ground)."""
+    by_name = {row.case.name: row for row in reference}
+    total = 0.0
+    for row in rows:
+        before = by_name.get(row.case.name)
+        if before is None or not before.passed:
+            continue
+        for metric in ("success_rate", "volumetric_fill_mean"):
+            lost = float(before.stats[metric]) - float(row.stats[metric]) - tolerance
+            total += max(lost, 0.0) / 0.01 if math.isfinite(lost) else 1.0
+    return total
+
+
+@dataclass
+class RankedForTarget(Ranked):
+    """A fine-tuned candidate's validation: the target world's row first, then every stress case."""
+
+    regression: float = 0.0
+    """:func:`regression_from` the starting policy's validation (0 for the starting policy itself)."""
+
+    @property
+    def target_passed(self) -> bool:
+        return self.rows[0].passed
+
+    @property
+    def score(self) -> float:
+        """What ranks it, lower first: the target world's shortfall, the other cases' and the ground lost."""
+        return self.shortfall + self.regression
+
+    def summary(self) -> dict[str, Any]:
+        return {**super().summary(), "target_passed": self.target_passed, "regression": round(self.regression, 4),
+                "score": round(self.score, 4)}
+
+
+def rank_for_target(candidates: Sequence[tuple[str, Path]], target: StressCase, episodes: int, seed: int,
+                    workers: int = 1, progress: bool = True) -> list[RankedForTarget]:
+    """Validate fine-tuned candidates on ``target`` (the world they were adapted for) and every stress case,
+    ``episodes`` each on seeds ``seed`` on, and return them best first by :attr:`RankedForTarget.score`, then the
+    mean delivered fill, then the order given. The first candidate is the starting policy: the reference of
+    :func:`regression_from`."""
+    if not candidates:
+        raise ValueError("no candidates to rank")
+    validated = []
+    for name, path in candidates:
+        if progress:
+            print(f"validation: {name}", flush=True)
+        validated.append((name, Path(path), run_stress(str(path), ScoopConfig(), episodes, seed=seed, workers=workers,
+                                                       progress=False, cases=[target, *CASES])))
+    reference = validated[0][2][1:]
+    ranked = [RankedForTarget(name, path, rows, regression=regression_from(rows[1:], reference))
+              for name, path, rows in validated]
+    order = sorted(range(len(ranked)), key=lambda i: (round(ranked[i].score, 9), -ranked[i].mean_delivered_fill, i))
     return [ranked[i] for i in order]

@@ -67,7 +67,10 @@ BEST_FILES = ("policy.zip", "policy.safetensors", "policy.json")
 BOOKKEEPING = ("episodes_done", "evaluations_done", "wall_s", "best_score", "best_episode")
 """what a checkpoint records of the run: episodes and evaluations done (rows of ``episodes.csv`` and
 ``evaluations.csv``), wall time so far (s), the best evaluation score and its episode (``None`` before one)."""
-RUN_OUTPUTS = ("episodes.csv", "evaluations.csv", *BEST_FILES, "last.safetensors", "last.json", "learning_curve.png",
+CRITIC_FILE = "critic.safetensors"
+"""a run's critic(s) at the end of training, beside ``critic.json`` (:mod:`autoscoop.agents.critic_files`)."""
+RUN_OUTPUTS = ("episodes.csv", "evaluations.csv", *BEST_FILES, "last.safetensors", "last.json", CRITIC_FILE,
+               "critic.json", "learning_curve.png",
                "evaluated", "tb", "selection.json", *CHECKPOINT_DIRS)
 """what training writes into a run directory after its settings (cleared when a run restarts from episode 0)."""
 

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from functools import partial
 from typing import Any
 
@@ -160,8 +161,17 @@ def make_vec_env(config: ScoopConfig, n_envs: int, seed: int, privileged: bool =
                  repeated_pile: int = 0) -> Any:
     """``n_envs`` training environments (:func:`make_training_env`; in subprocesses when more than one),
     seeded from ``seed``; the last ``repeated_pile`` of them on a shift's pile scooped again and again."""
-    factories = [partial(make_training_env, config, privileged, history, index >= n_envs - repeated_pile)
-                 for index in range(n_envs)]
-    vec = SubprocVecEnv(factories, start_method="fork") if n_envs > 1 else DummyVecEnv(factories)
+    return _vectorised([partial(make_training_env, config, privileged, history, index >= n_envs - repeated_pile)
+                        for index in range(n_envs)], seed)
+
+
+def make_mixed_vec_env(configs: Sequence[ScoopConfig], seed: int, privileged: bool = False, history: int = 1) -> Any:
+    """One training environment per config, each in its own world (fine-tuning mixes a target world with the
+    worlds a policy already holds); in subprocesses when more than one, seeded from ``seed``."""
+    return _vectorised([partial(make_training_env, config, privileged, history) for config in configs], seed)
+
+
+def _vectorised(factories: list[Any], seed: int) -> Any:
+    vec = SubprocVecEnv(factories, start_method="fork") if len(factories) > 1 else DummyVecEnv(factories)
     vec.seed(seed)
     return vec

@@ -13,6 +13,7 @@ A run directory holds everything needed to repeat and to use the run:
 | policy.zip | the best SB3 model by periodic evaluation (pickle inside: load only what you trust) |
 | policy.safetensors, policy.json | that policy's actor in the safe format, with its hash |
 | last.safetensors, last.json | the actor at the end of training |
+| critic.safetensors, critic.json | the critic(s) and target critic(s) at the end of training, with the recipe and config: what ``autoscoop adapt`` fine-tunes from (off-policy algorithms) |
 | evaluations.csv | each periodic evaluation: episode, delivered fill, fill factor, success, cycle time |
 | learning_curve.png | reward, fill factor and cycle time against episode (the paper's Fig. 8) |
 | .lock, lock.json | the lock the writing process holds, and who that is (PID, host, start time) while it runs |
@@ -39,6 +40,7 @@ import yaml
 from stable_baselines3 import DDPG, PPO, TD3
 
 from autoscoop.agents.algorithms import ALGORITHMS
+from autoscoop.agents.critic_files import has_critic, save_critic
 from autoscoop.agents.demonstrations import add_scripted_demonstrations
 from autoscoop.agents.policy_files import sha256_of
 from autoscoop.core.config import ScoopConfig, from_dict, save_yaml
@@ -46,6 +48,7 @@ from autoscoop.core.safe_files import atomic_output, write_text_atomically
 from autoscoop.core.version import __version__, dependency_versions
 from autoscoop.training.callbacks import EpisodeLogger, Evaluation, PolicyEvaluator
 from autoscoop.training.checkpoints import (
+    CRITIC_FILE,
     actor_meta,
     clear_run_outputs,
     find_checkpoint,
@@ -194,7 +197,7 @@ def _start(args: TrainArgs, run_dir: Path, config: ScoopConfig, spec: dict[str, 
     save_yaml(config, run_dir / "config.yaml")
     write_text_atomically(run_dir / "hyperparams.yaml", yaml.safe_dump(spec, sort_keys=False))
     write_run_json(run_dir, info)
-    return _run(run_dir, config, spec, info, done=0, model=model, progress=args.progress,
+    return train_model(run_dir, config, spec, info, done=0, model=model, progress=args.progress,
                 on_evaluation=args.on_evaluation)
 
 
@@ -228,27 +231,27 @@ def _continue(run_dir: Path, progress: bool, on_evaluation: Callable[[Evaluation
     if found is None:  # killed before its first checkpoint: start again, as if new
         model = _new_model(run_dir, config, spec, info, trust=trust)  # first: a refused --init zip changes no file
         clear_run_outputs(run_dir)
-        _set_bookkeeping(info, wall_s=0.0, best_score=None, best_episode=None)
+        set_bookkeeping(info, wall_s=0.0, best_score=None, best_episode=None)
         write_run_json(run_dir, info)
-        return _run(run_dir, config, spec, info, done=0, model=model, progress=progress, on_evaluation=on_evaluation)
+        return train_model(run_dir, config, spec, info, done=0, model=model, progress=progress, on_evaluation=on_evaluation)
     checkpoint, state = found
     done = state["episodes_done"]
     env = make_vec_env(config_at(config, spec, done), info["n_envs"], info["seed"] + done, privileged_critic(spec),
                        history_steps(spec), repeated_pile_envs(spec, info["n_envs"]))
-    model = _build_model(run_dir, env, spec, info, seed=info["seed"] + done)
+    model = build_model(run_dir, env, spec, info, seed=info["seed"] + done)
     try:
         load_checkpoint(model, checkpoint, state)
         restore_to_checkpoint(run_dir, checkpoint, state)  # files last: a refused checkpoint changes none
     except ValueError:
         env.close()
         raise
-    _set_bookkeeping(info, state["wall_s"], state["best_score"], state["best_episode"])
+    set_bookkeeping(info, state["wall_s"], state["best_score"], state["best_episode"])
     write_run_json(run_dir, info)
-    return _run(run_dir, config, spec, info, done=done, model=model, progress=progress,
+    return train_model(run_dir, config, spec, info, done=done, model=model, progress=progress,
                 evaluations_done=state["evaluations_done"], on_evaluation=on_evaluation)
 
 
-def _set_bookkeeping(info: dict[str, Any], wall_s: float, best_score: float | None, best_episode: int | None) -> None:
+def set_bookkeeping(info: dict[str, Any], wall_s: float, best_score: float | None, best_episode: int | None) -> None:
     """Set ``run.json``'s wall time (s) and best evaluation to a checkpoint's (no best: the keys go, as in a new run)."""
     info["wall_s"] = wall_s
     info.pop("best_score", None)
@@ -257,7 +260,7 @@ def _set_bookkeeping(info: dict[str, Any], wall_s: float, best_score: float | No
         info.update(best_score=best_score, best_episode=best_episode)
 
 
-def _build_model(run_dir: Path, env: Any, spec: dict[str, Any], info: dict[str, Any], seed: int) -> Any:
+def build_model(run_dir: Path, env: Any, spec: dict[str, Any], info: dict[str, Any], seed: int) -> Any:
     """The run's model, with fresh weights, on ``env``: the algorithm, networks, noise and settings of its YAML."""
     policy, policy_kwargs = make_policy(info["algo"], spec)
     kwargs = dict(spec.get("hyperparams") or {})
@@ -276,7 +279,7 @@ def _new_model(run_dir: Path, config: ScoopConfig, spec: dict[str, Any], info: d
     env = make_vec_env(config, info["n_envs"], info["seed"], privileged_critic(spec), history_steps(spec),
                        repeated_pile_envs(spec, info["n_envs"]))
     try:
-        model = _build_model(run_dir, env, spec, info, seed=info["seed"])
+        model = build_model(run_dir, env, spec, info, seed=info["seed"])
         if info.get("init_from"):
             load_init_weights(model, Path(info["init_from"]), info["init_sha256"], trust)
         if info.get("demo_episodes"):
@@ -291,11 +294,13 @@ def _new_model(run_dir: Path, config: ScoopConfig, spec: dict[str, Any], info: d
     return model
 
 
-def _run(run_dir: Path, config: ScoopConfig, spec: dict[str, Any], info: dict[str, Any], done: int,
-         model: Any, progress: bool, evaluations_done: int = 0,
-         on_evaluation: Callable[[Evaluation], None] | None = None) -> Path:
-    """Train ``model`` from episode ``done`` to the end (``evaluations_done`` evaluations already listed), then
-    write the final files. ``on_evaluation`` observes each periodic evaluation."""
+def train_model(run_dir: Path, config: ScoopConfig, spec: dict[str, Any], info: dict[str, Any], done: int,
+                model: Any, progress: bool, evaluations_done: int = 0,
+                on_evaluation: Callable[[Evaluation], None] | None = None) -> Path:
+    """Train ``model`` (built on its environments) from episode ``done`` to ``info["episodes"]`` (``evaluations_done``
+    evaluations already listed), evaluating in ``config``'s world and switching worlds at ``spec``'s curriculum, then
+    write the final files: ``last.*``, ``policy.*`` when no evaluation ran, and ``critic.*`` (what
+    :mod:`autoscoop.training.adapt` fine-tunes from). ``on_evaluation`` observes each periodic evaluation."""
     torch.set_num_threads(1)
     n_envs, episodes = info["n_envs"], info["episodes"]
     evaluator = PolicyEvaluator(run_dir, config_at(config, spec, done), info.get("eval_every", 50),
@@ -320,6 +325,10 @@ def _run(run_dir: Path, config: ScoopConfig, spec: dict[str, Any], info: dict[st
         write_run_json(run_dir, info)
     target = keep_target_actor(spec)
     save_safe_actor(model, run_dir / "last.safetensors", actor_meta(info, run_dir), target=target)
+    if has_critic(model) and (run_dir / "last.safetensors").is_file():
+        save_critic(model, run_dir / CRITIC_FILE, sha256_of(run_dir / "last.safetensors"),
+                    {"spec": spec, "config": config.to_dict(), "run": run_dir.name,
+                     "held_config": config_at(config, spec, episodes).to_dict()})
     if not (run_dir / "policy.zip").exists():  # no evaluation ran: the last policy is the policy
         with atomic_output(run_dir / "policy.zip") as tmp:
             model.save(tmp)

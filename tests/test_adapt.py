@@ -1,0 +1,176 @@
+"""``autoscoop adapt``: the critic beside a policy, the actor held then slowed, bad input refused before any
+simulation, and a small run that writes a run directory, keeps a validated snapshot and resumes after a kill."""
+
+import json
+import shutil
+import signal
+import subprocess
+import sys
+
+import pytest
+import torch
+
+from autoscoop.agents.critic_files import critic_into_sb3, critic_path_for, read_critic_sidecar, save_critic
+from autoscoop.agents.loading import default_policy_path
+from autoscoop.agents.optimizers import HeldAdam
+from autoscoop.agents.policy_files import PolicyFileError, sha256_of
+from autoscoop.cli import main
+
+TINY = ["--episodes", "6", "--eval-every", "3", "--candidates", "1", "--validation-episodes", "1",
+        "--critic-warmup-steps", "20", "--eval-episodes", "1", "--set", "pile.variants=2", "--no-progress"]
+"""6 episodes, two simulators, evaluations at 3 and 6, one snapshot validated beside the start on 1 episode a world."""
+
+KILL_DRIVER = """
+import os, signal, sys
+from autoscoop.training import callbacks
+original = callbacks.EpisodeLogger.end_episode
+def end_episode(self, env_index, info):
+    original(self, env_index, info)
+    if self.done == int(sys.argv[1]):
+        os.kill(os.getpid(), signal.SIGKILL)
+callbacks.EpisodeLogger.end_episode = end_episode
+if __name__ == "__main__":  # the simulators' worker processes import this file again
+    from autoscoop.cli import main
+    sys.exit(main(sys.argv[2:]))
+"""
+
+
+def test_the_shipped_policy_has_its_critic_beside_it():
+    actor = default_policy_path()
+    meta = read_critic_sidecar(critic_path_for(actor))
+    assert meta["actor_sha256"] == sha256_of(actor)
+    assert meta["held_config"]["randomize"]["preset"] == "robot"
+    assert meta["config"]["randomize"]["preset"] == "none"
+    assert meta["spec"]["privileged_critic"] is True
+
+
+def test_held_adam_holds_then_moves_at_a_fraction_of_the_rate():
+    torch.manual_seed(0)
+    held, full = torch.nn.Linear(3, 1), torch.nn.Linear(3, 1)
+    full.load_state_dict(held.state_dict())
+    start = held.weight.detach().clone()
+    slow, fast = HeldAdam(held.parameters(), lr=0.1, hold_steps=2, lr_scale=0.1), torch.optim.Adam(full.parameters(), lr=0.1)
+    for step in range(3):
+        for net, optimizer in ((held, slow), (full, fast)):
+            optimizer.zero_grad()
+            net(torch.ones(1, 3)).sum().backward()
+            optimizer.step()
+        if step < 2:
+            assert torch.equal(held.weight, start)  # held
+    moved = (held.weight - start).abs().max().item()
+    assert 0.009 < moved < 0.011  # Adam's first step is lr: 0.1 x 0.1
+    restored = HeldAdam(torch.nn.Linear(3, 1).parameters(), lr=0.1)
+    restored.load_state_dict(slow.state_dict())
+    assert restored.param_groups[0]["steps_taken"] == 3 and restored.param_groups[0]["lr_scale"] == 0.1
+
+
+def test_a_critic_file_round_trips_and_a_changed_one_is_refused(tmp_path):
+    from autoscoop.training.adapt import AdaptArgs, adapt_model, adapt_source, adapt_spec, adapt_worlds
+
+    source = adapt_source("default")
+    target, held = adapt_worlds(source, {"pile.variants": 2})
+    spec = adapt_spec(source, AdaptArgs(episodes=2))
+    info = {"algo": "ddpg", "seed": 0, "n_envs": 2, "init_from": str(source.actor), "init_sha256": sha256_of(source.actor),
+            "adapt": {"critic_from": str(source.critic)}}
+    model = adapt_model(tmp_path, target, held, spec, info)
+    try:
+        path = save_critic(model, tmp_path / "copy.critic.safetensors", "0" * 64, {"spec": {}, "config": {}})
+        fresh = adapt_model(tmp_path, target, held, spec, {**info, "adapt": {"critic_from": None}})
+        try:
+            critic_into_sb3(path, fresh)
+            for name, tensor in model.policy.critic.state_dict().items():
+                assert torch.equal(tensor, fresh.policy.critic.state_dict()[name])
+        finally:
+            fresh.get_env().close()
+        data = bytearray(path.read_bytes())
+        data[-1] ^= 1
+        path.write_bytes(bytes(data))
+        with pytest.raises(PolicyFileError, match="SHA-256"):
+            critic_into_sb3(path, model)
+    finally:
+        model.get_env().close()
+
+
+def test_a_policy_without_a_critic_is_refused_before_any_simulation(tmp_path, capsys):
+    actor = default_policy_path()
+    for suffix in (".safetensors", ".json"):
+        shutil.copy(actor.with_suffix(suffix), tmp_path / f"lonely{suffix}")
+    assert main(["adapt", "--policy", str(tmp_path / "lonely.safetensors"), "--out", str(tmp_path / "run"), *TINY]) == 2
+    error = capsys.readouterr().err
+    assert "no critic beside its actor" in error and "lonely.critic.safetensors" in error
+    assert not (tmp_path / "run").exists()
+
+
+@pytest.mark.parametrize("policy", ["heuristic", "policy.onnx"])
+def test_a_policy_of_a_kind_without_a_critic_is_refused(tmp_path, capsys, policy):
+    assert main(["adapt", "--policy", policy, "--out", str(tmp_path / "run"), *TINY]) == 2
+    assert "carry no critic" in capsys.readouterr().err
+    assert not (tmp_path / "run").exists()
+
+
+def test_a_world_key_that_does_not_exist_is_refused_by_name(tmp_path, capsys):
+    assert main(["adapt", "--out", str(tmp_path / "run"), *TINY, "--set", "pile.particle_mass=0.4"]) == 2
+    assert "pile.particle_mass" in capsys.readouterr().err
+    assert not (tmp_path / "run").exists()
+
+
+def test_a_critic_of_another_actor_is_refused(tmp_path, capsys):
+    actor = default_policy_path()
+    for suffix in (".safetensors", ".json"):
+        shutil.copy(actor.with_suffix(suffix), tmp_path / f"other{suffix}")
+        shutil.copy(critic_path_for(actor).with_suffix(suffix), tmp_path / f"other.critic{suffix}")
+    meta = json.loads((tmp_path / "other.critic.json").read_text())
+    (tmp_path / "other.critic.json").write_text(json.dumps({**meta, "actor_sha256": "f" * 64}))
+    assert main(["adapt", "--policy", str(tmp_path / "other.safetensors"), "--out", str(tmp_path / "run"), *TINY]) == 2
+    assert "trained with another actor" in capsys.readouterr().err
+
+
+def test_a_small_adapt_run_keeps_a_validated_snapshot_and_exports_it(tmp_path, capsys):
+    run = tmp_path / "run"
+    assert main(["adapt", "--out", str(run), *TINY, "--set", "pile.particle_mass_kg=0.4"]) == 0
+    info = json.loads((run / "run.json").read_text())
+    assert info["status"] == "finished" and info["recipe"] == "adapt"
+    selection = json.loads((run / "selection.json").read_text())
+    assert {c["name"] for c in selection["candidates"]} <= {"start", "episode 3", "episode 6"}
+    assert "start" in {c["name"] for c in selection["candidates"]}
+    assert all(c["cases"] == 12 for c in selection["candidates"])  # the target world and the eleven stress cases
+    assert (run / "policy.onnx").is_file() and (run / "critic.safetensors").is_file()
+    assert info["scoops_simulated"] == 6 + 1 * 3 + 2 * 12 * 1  # training, periodic (0, 3, 6), validation
+    assert "simulated scoops" in capsys.readouterr().out
+    # an adapted run can be adapted again: its critic lies beside it
+    critic = read_critic_sidecar(run / "critic.safetensors")
+    assert critic["config"]["pile"]["particle_mass_kg"] == 0.4
+
+
+def test_an_adapt_run_killed_mid_way_resumes_to_the_end(tmp_path):
+    run = tmp_path / "run"
+    driver = tmp_path / "kill_driver.py"
+    driver.write_text(KILL_DRIVER)
+    log = tmp_path / "driver.log"
+    with log.open("w") as sink:  # a file, not a pipe: the simulators' workers outlive the killed process
+        killed = subprocess.run([sys.executable, str(driver), "5", "adapt", "--out", str(run), *TINY,
+                                 "--checkpoint-every", "2"], stdout=sink, stderr=subprocess.STDOUT, timeout=120)
+    assert killed.returncode == -signal.SIGKILL, log.read_text()[-2000:]
+    assert json.loads((run / "run.json").read_text())["status"] == "running"
+    assert json.loads((run / "checkpoint" / "state.json").read_text())["episodes_done"] == 4
+    assert main(["adapt", "--resume", str(run), "--no-progress", "--candidates", "1", "--validation-episodes", "1"]) == 0
+    info = json.loads((run / "run.json").read_text())
+    assert info["status"] == "finished"
+    rows = (run / "episodes.csv").read_text().strip().splitlines()
+    assert len(rows) == 1 + 6
+    assert (run / "selection.json").is_file()
+
+
+def test_resume_refuses_a_new_world(tmp_path, capsys):
+    assert main(["adapt", "--resume", str(tmp_path), "--set", "pile.angle_deg=25"]) == 2
+    assert "--set" in capsys.readouterr().err
+
+
+def test_adapt_help_names_every_option(capsys):
+    with pytest.raises(SystemExit):
+        main(["adapt", "--help"])
+    text = capsys.readouterr().out
+    for option in ("--policy", "--set", "--config", "--episodes", "--seed", "--resume", "--held-envs",
+                   "--critic-warmup-steps", "--actor-lr-scale", "--eval-episodes", "--candidates", "--validation-episodes"):
+        assert option in text
+
