@@ -2,7 +2,8 @@
 
 For each world and seed: ``autoscoop adapt --policy default --set WORLD --seed S`` (timed, wall seconds of the
 whole command; a run cut by an interruption is continued with ``--resume``), then the stress suite on its kept
-policy and on ``default``, the same seeds in every case (``--episodes`` each, seeds 0 on): the target world
+policy (``default``'s figures where the run kept its starting weights unchanged) and on ``default``, the same
+seeds in every case (``--episodes`` each, seeds 0 on): the target world
 first, then the eleven stress cases. A run passes when its target world holds the stress thresholds and every
 case ``default`` holds still holds, within ``--tolerance`` of ``default``'s success and volumetric fill.
 Each run's figures go to ``OUT/WORLD-sS/stress{EPISODES}.json`` and a summary row to ``--json``; the seed table
@@ -22,6 +23,8 @@ import sys
 import time
 from pathlib import Path
 
+from autoscoop.agents.loading import default_policy_path
+from autoscoop.agents.policy_files import sha256_of
 from autoscoop.core.config import ScoopConfig
 from autoscoop.core.safe_files import write_json_atomically
 from autoscoop.evaluation.stress import CASES, STRESS_THRESHOLDS, StressCase, run_stress
@@ -111,11 +114,13 @@ def main() -> int:
             run = args.out / f"{world}-s{seed}"
             wall = adapt_run(world, seed, run, args.adapt_args.split())
             info = json.loads((run / "run.json").read_text())
-            rows = stress_rows(str(run / "policy.safetensors"), world, args.episodes, 0, args.workers,
-                               run / f"stress{args.episodes}.json")
+            kept_start = sha256_of(run / "policy.safetensors") == sha256_of(default_policy_path())
+            # the same weights on the same seeds give the same figures: a run that kept its start is default's
+            rows = reference if kept_start else stress_rows(str(run / "policy.safetensors"), world, args.episodes, 0,
+                                                            args.workers, run / f"stress{args.episodes}.json")
             row = {"world": world, "seed": seed, "run": str(run), "adapt_wall_s": wall,
                    "training_wall_s": info.get("wall_s"), "scoops_simulated": info.get("scoops_simulated"),
-                   "selected_episode": info.get("selected_episode"), **verdict(rows, reference, args.tolerance),
+                   "selected_episode": info.get("selected_episode"), "kept_start": kept_start, **verdict(rows, reference, args.tolerance),
                    "by_case": {r["case"]: {k: r["stats"][k] for k in ("success_rate", "volumetric_fill_mean",
                                                                        "fill_factor_mean", "overload_rate")}
                                | {"passed": r["passed"]} for r in rows},

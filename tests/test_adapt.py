@@ -1,7 +1,9 @@
 """``autoscoop adapt``: the critic beside a policy, the actor held then slowed, bad input refused before any
 simulation, and a small run that writes a run directory, keeps a validated snapshot and resumes after a kill."""
 
+import contextlib
 import json
+import os
 import shutil
 import signal
 import subprocess
@@ -148,8 +150,14 @@ def test_an_adapt_run_killed_mid_way_resumes_to_the_end(tmp_path):
     driver.write_text(KILL_DRIVER)
     log = tmp_path / "driver.log"
     with log.open("w") as sink:  # a file, not a pipe: the simulators' workers outlive the killed process
-        killed = subprocess.run([sys.executable, str(driver), "5", "adapt", "--out", str(run), *TINY,
-                                 "--checkpoint-every", "2"], stdout=sink, stderr=subprocess.STDOUT, timeout=120)
+        killed = subprocess.Popen([sys.executable, str(driver), "5", "adapt", "--out", str(run), *TINY,
+                                   "--checkpoint-every", "2"], stdout=sink, stderr=subprocess.STDOUT,
+                                  start_new_session=True)
+        try:
+            killed.wait(timeout=120)
+        finally:
+            with contextlib.suppress(ProcessLookupError):
+                os.killpg(killed.pid, signal.SIGKILL)  # its simulators' workers too
     assert killed.returncode == -signal.SIGKILL, log.read_text()[-2000:]
     assert json.loads((run / "run.json").read_text())["status"] == "running"
     assert json.loads((run / "checkpoint" / "state.json").read_text())["episodes_done"] == 4
@@ -174,3 +182,29 @@ def test_adapt_help_names_every_option(capsys):
                    "--critic-warmup-steps", "--actor-lr-scale", "--eval-episodes", "--candidates", "--validation-episodes"):
         assert option in text
 
+
+
+def test_the_anchored_actor_drifts_less_from_its_start_than_plain_ddpg():
+    import copy
+
+    import gymnasium as gym
+    from stable_baselines3 import DDPG
+
+    from autoscoop.agents.anchored import AnchoredDDPG
+
+    def drift(algo_cls, alpha=None):
+        model = algo_cls("MlpPolicy", gym.make("Pendulum-v1"), learning_starts=64, batch_size=64, seed=0,
+                         learning_rate=3e-3, policy_kwargs={"net_arch": [32, 32]}, device="cpu")
+        start = copy.deepcopy(model.actor)
+        if alpha is not None:
+            model.set_anchor(model.actor, alpha)
+        model.learn(400)
+        states = torch.as_tensor(model.replay_buffer.observations[:400, 0])
+        with torch.no_grad():
+            return float(((model.actor(states) - start(states)) ** 2).mean())
+
+    plain, anchored = drift(DDPG), drift(AnchoredDDPG, alpha=0.05)
+    assert anchored < 0.5 * plain, (anchored, plain)
+    assert drift(AnchoredDDPG) == pytest.approx(plain)  # no anchor: DDPG unchanged
+    with pytest.raises(ValueError, match="above 0"):
+        AnchoredDDPG("MlpPolicy", gym.make("Pendulum-v1"), device="cpu").set_anchor(torch.nn.Linear(1, 1), 0.0)

@@ -42,6 +42,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                              "(default 500)")
     parser.add_argument("--actor-lr-scale", type=options.NumberIn(1e-4, 1.0), default=0.1, metavar="X",
                         help="the actor's learning rate as a fraction of the critic's, in [0.0001, 1] (default 0.1)")
+    parser.add_argument("--anchor-alpha", type=options.NumberIn(0.0, 1000.0), default=2.5, metavar="X",
+                        help="weight of the critic against the pull back to the starting actor (TD3+BC's alpha), "
+                             "in [0, 1000] (default 2.5; 0: no pull)")
     parser.add_argument("--noise-sigma", type=options.NumberIn(0.0, 1.0), default=0.05, metavar="X",
                         help="exploration noise, standard deviation in action units, in [0, 1] (default 0.05)")
     parser.add_argument("--eval-every", type=options.POSITIVE, default=25, metavar="N",
@@ -83,6 +86,7 @@ def run(args: argparse.Namespace) -> int:
         run_dir = adapt(AdaptArgs(policy=args.policy, overrides=overrides, episodes=args.episodes, seed=args.seed,
                                   target_envs=args.target_envs, held_envs=args.held_envs,
                                   critic_warmup_steps=args.critic_warmup_steps, actor_lr_scale=args.actor_lr_scale,
+                                  anchor_alpha=args.anchor_alpha,
                                   noise_sigma=args.noise_sigma, eval_every=args.eval_every,
                                   eval_episodes=args.eval_episodes, out=args.out,
                                   checkpoint_every=args.checkpoint_every,

@@ -27,6 +27,7 @@ from typing import Any
 import torch
 import yaml
 
+from autoscoop.agents.anchored import AnchoredDDPG
 from autoscoop.agents.critic_files import critic_into_sb3, critic_path_for, read_critic_sidecar
 from autoscoop.agents.loading import DEFAULT_POLICY, default_policy_path
 from autoscoop.agents.optimizers import HeldAdam
@@ -78,6 +79,8 @@ class AdaptArgs:
     """gradient steps (one after each step of all simulators) before the actor moves."""
     actor_lr_scale: float = 0.1
     """the actor's learning rate as a fraction of the critic's, in (0, 1]."""
+    anchor_alpha: float = 2.5
+    """weight of the critic against the pull back to the starting actor (:class:`AnchoredDDPG`); 0: no pull."""
     noise_sigma: float = 0.05
     """standard deviation of the exploration noise (Ornstein-Uhlenbeck as the recipe's, constant)."""
     eval_every: int = 25
@@ -159,6 +162,7 @@ def adapt_spec(source: AdaptSource, args: AdaptArgs) -> dict[str, Any]:
     if spec.get("noise"):
         spec["noise"].update(sigma_start=args.noise_sigma, sigma_end=args.noise_sigma)
     spec["adapt"] = {"critic_warmup_steps": args.critic_warmup_steps, "actor_lr_scale": args.actor_lr_scale,
+                     "anchor_alpha": args.anchor_alpha,
                      "target_envs": args.target_envs, "held_envs": args.held_envs,
                      "target_overrides": dict(args.overrides)}
     return spec
@@ -173,6 +177,8 @@ def check_adapt_args(args: AdaptArgs) -> None:
         raise ValueError(f"actor_lr_scale = {args.actor_lr_scale} is out of range; allowed (0, 1]")
     if not 0.0 <= args.noise_sigma <= 1.0:
         raise ValueError(f"noise_sigma = {args.noise_sigma} is out of range; allowed [0, 1]")
+    if not 0.0 <= args.anchor_alpha <= 1000.0:
+        raise ValueError(f"anchor_alpha = {args.anchor_alpha} is out of range; allowed [0, 1000]")
     if args.critic_warmup_steps < 0:
         raise ValueError(f"critic_warmup_steps = {args.critic_warmup_steps} must be 0 or more")
 
@@ -224,20 +230,25 @@ def adapt(args: AdaptArgs, source: AdaptSource | None = None) -> Path:
 def adapt_model(run_dir: Path, target: ScoopConfig, held: ScoopConfig, spec: dict[str, Any], info: dict[str, Any],
                 seed: int | None = None, warm_start: bool = True) -> Any:
     """The run's model on its simulators (``target_envs`` in the target world, then ``held_envs`` in the held
-    world), the actor's optimiser a :class:`HeldAdam`; with ``warm_start``, the source actor and critic copied in."""
+    world), the actor's optimiser a :class:`HeldAdam`, the source actor copied in and, for DDPG with
+    ``anchor_alpha`` > 0, the actor held near it (:class:`AnchoredDDPG`); with ``warm_start``, the source critic too."""
     settings = spec["adapt"]
     configs = [target] * settings["target_envs"] + [held] * settings["held_envs"]
     seed = info["seed"] if seed is None else seed
     env = make_mixed_vec_env(configs, seed, privileged_critic(spec), history_steps(spec))
+    alpha = float(settings.get("anchor_alpha", 0.0))
     try:
-        model = build_model(run_dir, env, spec, info, seed=seed)
+        model = build_model(run_dir, env, spec, info, seed=seed,
+                            algo_cls=AnchoredDDPG if alpha and info["algo"] == "ddpg" else None)
         actor = model.policy.actor
         actor.optimizer = HeldAdam(actor.parameters(), lr=model.lr_schedule(1.0),
                                    hold_steps=settings["critic_warmup_steps"], lr_scale=settings["actor_lr_scale"])
-        if warm_start:
-            load_init_weights(model, Path(info["init_from"]), info["init_sha256"], trust=False)
-            if info["adapt"]["critic_from"]:
-                critic_into_sb3(info["adapt"]["critic_from"], model)
+        # the starting actor, also when resuming (the checkpoint then replaces the weights): the anchor
+        load_init_weights(model, Path(info["init_from"]), info["init_sha256"], trust=False)
+        if isinstance(model, AnchoredDDPG):
+            model.set_anchor(model.actor, alpha)
+        if warm_start and info["adapt"]["critic_from"]:
+            critic_into_sb3(info["adapt"]["critic_from"], model)
     except BaseException:
         env.close()
         raise

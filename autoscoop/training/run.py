@@ -260,12 +260,14 @@ def set_bookkeeping(info: dict[str, Any], wall_s: float, best_score: float | Non
         info.update(best_score=best_score, best_episode=best_episode)
 
 
-def build_model(run_dir: Path, env: Any, spec: dict[str, Any], info: dict[str, Any], seed: int) -> Any:
-    """The run's model, with fresh weights, on ``env``: the algorithm, networks, noise and settings of its YAML."""
+def build_model(run_dir: Path, env: Any, spec: dict[str, Any], info: dict[str, Any], seed: int,
+                algo_cls: type | None = None) -> Any:
+    """The run's model, with fresh weights, on ``env``: the algorithm, networks, noise and settings of its YAML.
+    ``algo_cls``: a subclass of the run's algorithm to build instead (fine-tuning's)."""
     policy, policy_kwargs = make_policy(info["algo"], spec)
     kwargs = dict(spec.get("hyperparams") or {})
-    algo_cls = ALGORITHMS[info["algo"]]
-    if algo_cls in (DDPG, TD3):
+    algo_cls = algo_cls or ALGORITHMS[info["algo"]]
+    if issubclass(algo_cls, (DDPG, TD3)):
         kwargs["action_noise"] = make_noise(spec, info["n_envs"])
     if buffer_settings := replay_buffer_settings(spec):
         kwargs["replay_buffer_kwargs"] = buffer_settings
