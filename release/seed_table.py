@@ -9,8 +9,14 @@ A run's stress figures are kept beside it (``RUN/stress{EPISODES}_seed{SEED}.jso
 only) and read back on the next call, so the table can be redrawn without simulating. An argument
 ``NAME=FILE`` takes an ``autoscoop stress --json`` file instead of a run.
 
+``--adapt FILE`` reads the summary ``benchmarks/adapt_worlds.py`` writes instead and prints, per target world and
+case, the interquartile mean over seeds of the success rate and the volumetric fill with their 95 % stratified
+bootstrap intervals (:mod:`autoscoop.report.seed_stats`) and the share of seeds that hold the case, then how many
+seeds pass (the target world held and no case of ``default``'s lost).
+
     .venv/bin/python release/seed_table.py runs/robust-s10 runs/robust-s11 ... --episodes 100 --workers 2 \\
         --json out/seed_table.json
+    .venv/bin/python release/seed_table.py --adapt benchmarks/results/adapt/adapt_worlds.json
 """
 
 from __future__ import annotations
@@ -24,6 +30,7 @@ from pathlib import Path
 from autoscoop.core.config import ScoopConfig
 from autoscoop.core.safe_files import write_json_atomically
 from autoscoop.evaluation.stress import CASES, case_names, run_stress
+from autoscoop.report.seed_stats import seed_reliability
 
 
 def stress_summary(run: Path, episodes: int, seed: int, workers: int) -> dict:
@@ -82,15 +89,53 @@ def markdown(rows: list[dict]) -> str:
     return "\n".join(lines)
 
 
+def adapt_markdown(world: str, table: dict[str, dict], runs: list[dict]) -> str:
+    """One target world's Markdown table: per case, IQM [95 % interval] of success and fill, share of seeds holding."""
+    def cell(figures: dict) -> str:
+        return f"{figures['iqm']:.3f} [{figures['low']:.3f}, {figures['high']:.3f}]"
+
+    seeds = ", ".join(str(run["seed"]) for run in runs)
+    lines = [f"**{world}** (seeds {seeds}; {sum(run['passed'] for run in runs)} of {len(runs)} pass)", "",
+             "| case | success, IQM [95 % CI] | volumetric fill, IQM [95 % CI] | seeds holding |",
+             "|---|---|---|---|"]
+    for case, row in table.items():
+        lines.append(f"| {case} | {cell(row['success_rate'])} | {cell(row['volumetric_fill_mean'])} | "
+                     f"{row['share_passed']:.0%} |")
+    return "\n".join(lines)
+
+
+def adapt_table(summary_file: Path, json_out: Path | None) -> int:
+    """Print (and with ``json_out`` write) the reliability table of each target world in an adapt summary."""
+    runs = json.loads(summary_file.read_text())["runs"]
+    worlds = list(dict.fromkeys(run["world"] for run in runs))
+    out = {}
+    for world in worlds:
+        mine = sorted((run for run in runs if run["world"] == world), key=lambda run: run["seed"])
+        table = seed_reliability([run["by_case"] for run in mine])
+        print(adapt_markdown(world, table, mine), end="\n\n")
+        out[world] = {"seeds": [run["seed"] for run in mine], "seeds_passing": sum(run["passed"] for run in mine),
+                      "adapt_wall_s": [run["adapt_wall_s"] for run in mine],
+                      "scoops_simulated": [run["scoops_simulated"] for run in mine], "cases": table}
+    if json_out:
+        write_json_atomically(json_out, {"source": str(summary_file), "worlds": out})
+    return 0
+
+
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("runs", nargs="+", metavar="RUN|NAME=FILE",
+    parser.add_argument("runs", nargs="*", metavar="RUN|NAME=FILE",
                         help="a finished run directory, or a row's name and an `autoscoop stress --json` file")
     parser.add_argument("--episodes", type=int, default=100, help="episodes per case for runs (default 100)")
     parser.add_argument("--seed", type=int, default=0, help="first evaluation seed (default 0: seeds 0-99)")
     parser.add_argument("--workers", type=int, default=2, help="stress worker processes (default 2)")
     parser.add_argument("--json", type=Path, help="write every row's figures to this JSON file")
+    parser.add_argument("--adapt", type=Path, metavar="FILE",
+                        help="the reliability table of an adapt benchmark's summary (benchmarks/adapt_worlds.py)")
     args = parser.parse_args()
+    if args.adapt:
+        return adapt_table(args.adapt, args.json)
+    if not args.runs:
+        parser.error("give run directories or NAME=FILE stress files, or --adapt FILE")
     if args.episodes < 1 or args.workers < 1 or args.seed < 0:
         parser.error("--episodes and --workers must be at least 1, --seed at least 0")
     rows = []

@@ -47,3 +47,35 @@ def bootstrap_interval(values_by_task: Sequence[Sequence[float]], reps: int = 20
     tail = (1.0 - confidence) / 2.0 * 100.0
     low, high = np.percentile(replicates, [tail, 100.0 - tail])
     return float(low), float(high)
+
+
+def seed_reliability(by_seed: Sequence[dict[str, dict]], metrics: Sequence[str] = ("success_rate", "volumetric_fill_mean"),
+                     reps: int = 2000, seed: int = 0) -> dict[str, dict]:
+    """Per case, over the runs of one recipe (one per training seed): each metric's interquartile mean over
+    seeds and its 95 % bootstrap interval (resampling the seeds), and the share of seeds whose run holds the case.
+
+    Args:
+        by_seed: per seed, ``{case: {metric: value, ..., "passed": bool}}`` (the stress suite's per-case figures).
+        metrics: the figures to aggregate.
+
+    Returns:
+        ``{case: {metric: {"iqm", "low", "high"}, "share_passed": float, "seeds": n}}``, cases in the first seed's order.
+
+    Raises:
+        ValueError: no seeds, or seeds that do not report the same cases.
+    """
+    if not by_seed:
+        raise ValueError("seed reliability needs at least one seed's figures")
+    cases = list(by_seed[0])
+    if any(set(run) != set(cases) for run in by_seed):
+        raise ValueError(f"every seed must report the same cases; the first reports {cases}")
+    table = {}
+    for case in cases:
+        row: dict = {"seeds": len(by_seed),
+                     "share_passed": float(np.mean([bool(run[case]["passed"]) for run in by_seed]))}
+        for metric in metrics:
+            values = [float(run[case][metric]) for run in by_seed]
+            low, high = bootstrap_interval([values], reps=reps, seed=seed)
+            row[metric] = {"iqm": interquartile_mean(values), "low": low, "high": high}
+        table[case] = row
+    return table
