@@ -12,6 +12,8 @@ import pytest
 ROOT = Path(__file__).resolve().parents[1]
 RESULTS = "benchmarks/results"
 RESULTS_LIMIT_BYTES = 3 * 1024 * 1024
+RESULTS_LIMIT_FILES = 300
+"""benchmarks/results keeps the summaries the pages cite; the rest is regenerable (docs/experiments/README.md)."""
 FILE_LIMIT_BYTES = 256 * 1024
 WEIGHT_SUFFIXES = (".safetensors", ".onnx", ".zip")
 POLICIES = PurePosixPath("autoscoop/policies")
@@ -52,6 +54,7 @@ def test_benchmark_results_stay_small():
     sizes = {name: (ROOT / name).stat().st_size for name in tracked(RESULTS) if (ROOT / name).exists()}
     assert sizes, f"nothing tracked under {RESULTS}"
     assert oversized(sizes, RESULTS_LIMIT_BYTES, FILE_LIMIT_BYTES) == []
+    assert len(sizes) <= RESULTS_LIMIT_FILES, f"{len(sizes)} files under {RESULTS} (at most {RESULTS_LIMIT_FILES})"
 
 
 def test_policy_weights_live_only_in_the_package_policies():
