@@ -3,8 +3,9 @@
 Frame ("chassis frame"): x forward from the chassis centre, z up from the ground under it, metres;
 the arm moves in this x-z plane. Angles in radians. Both arm joints turn about the chassis +y axis
 (y to the robot's left), so a positive angle pitches the part forward-down: a larger lift angle
-lowers the arm, a larger tilt angle tips the cutting edge down. Dimensions are from docs/definitions.md; the
-MJCF in ``assets/loader.xml`` is built from the same numbers and a test checks they agree.
+lowers the arm, a larger tilt angle tips the cutting edge down. The module's names are the default machine's
+(:mod:`autoscoop.core.machine`, ``autoscoop/machines/komodo/machine.yaml``); its MJCF is built from the
+same numbers and ``autoscoop machine check`` and a test check that they agree.
 """
 
 from __future__ import annotations
@@ -13,23 +14,27 @@ from dataclasses import dataclass
 
 import numpy as np
 
-CHASSIS_CENTRE_HEIGHT_M = 0.1275
-ARM_BASE_FROM_CHASSIS_M = (0.30, 0.17)
-LIFT_JOINT_FROM_ARM_BASE_M = (0.069, 0.182)
-TILT_JOINT_FROM_LIFT_JOINT_M = (0.631, -0.223)
+from autoscoop.core.machine import DEFAULT_MACHINE, load_machine
+
+MACHINE = load_machine(DEFAULT_MACHINE)
+"""The machine these names describe (``autoscoop/machines/komodo/machine.yaml``, the source of every number)."""
+
+CHASSIS_CENTRE_HEIGHT_M = MACHINE.chassis.centre_height_m
+ARM_BASE_FROM_CHASSIS_M = MACHINE.arm.base_from_chassis_m
+LIFT_JOINT_FROM_ARM_BASE_M = MACHINE.arm.lift_joint_from_base_m
+TILT_JOINT_FROM_LIFT_JOINT_M = MACHINE.arm.tilt_joint_from_lift_joint_m
 """Bucket (tilt) joint relative to the lift joint with the arm at zero, m (x forward, z up)."""
-BUCKET_MOUNT_PITCH_RAD = 0.20
-"""Pitch-down of the bucket frame (x from tilt joint to cutting edge) at tilt zero, relative to the arm.
-Chosen so the bucket floor is level at lift 0.24 rad, tilt 0 (see assets/README.md)."""
-TIP_FROM_TILT_JOINT_M = 0.215
+BUCKET_MOUNT_PITCH_RAD = MACHINE.bucket.mount_pitch_rad
+"""Pitch-down of the bucket frame (x from tilt joint to cutting edge) at tilt zero, relative to the arm."""
+TIP_FROM_TILT_JOINT_M = MACHINE.bucket.tip_from_tilt_joint_m
 
-LIFT_RANGE_RAD = (-0.10, 0.32)
-TILT_RANGE_RAD = (-0.50, 0.90)
+LIFT_RANGE_RAD = MACHINE.joints.lift.range_rad
+TILT_RANGE_RAD = MACHINE.joints.tilt.range_rad
 
-ARM_MASS_KG = 1.65
-ARM_COM_ALONG_M = 0.386
-BUCKET_MASS_KG = 0.744
-BUCKET_COM_FROM_TILT_JOINT_M = 0.081
+ARM_MASS_KG = MACHINE.arm.mass_kg
+ARM_COM_ALONG_M = MACHINE.arm.com_along_m
+BUCKET_MASS_KG = MACHINE.bucket.mass_kg
+BUCKET_COM_FROM_TILT_JOINT_M = MACHINE.bucket.com_from_tilt_joint_m
 
 LIFT_JOINT_M = np.array([
     ARM_BASE_FROM_CHASSIS_M[0] + LIFT_JOINT_FROM_ARM_BASE_M[0],
@@ -97,18 +102,14 @@ def arm_pose(lift_rad: float | np.ndarray, tilt_rad: float | np.ndarray) -> ArmP
         tip=bucket_point(lift, tilt_rad, np.array([TIP_FROM_TILT_JOINT_M, 0.0])),
     )
 
-BUCKET_INSIDE_POLYGON_M = np.array([
-    [0.0, 0.0],
-    [0.124 * np.cos(np.radians(46.0)), 0.124 * np.sin(np.radians(46.0))],
-    [TIP_FROM_TILT_JOINT_M, 0.0],
-    [0.10 * np.cos(np.radians(-41.0)), 0.10 * np.sin(np.radians(-41.0))],
-])
-"""The paper's in-bucket quadrilateral in the bucket frame (x to the cutting edge, z toward the mouth), m:
-tilt joint, 0.124 m at +46 deg, cutting edge, 0.10 m at -41 deg. Clockwise."""
+
+BUCKET_INSIDE_POLYGON_M = np.array(MACHINE.bucket.inside_polygon_m, dtype=float)
+"""The in-bucket outline in the bucket frame (x to the cutting edge, z toward the mouth), m, clockwise and
+convex; for the Komodo the paper's quadrilateral: tilt joint, 0.124 m at +46 deg, cutting edge, 0.10 m at -41 deg."""
 _EDGES = np.roll(BUCKET_INSIDE_POLYGON_M, -1, axis=0) - BUCKET_INSIDE_POLYGON_M
 _EDGE_OFFSETS = BUCKET_INSIDE_POLYGON_M[:, 1] * _EDGES[:, 0] - BUCKET_INSIDE_POLYGON_M[:, 0] * _EDGES[:, 1]
-BUCKET_INNER_HALF_WIDTH_M = 0.23
-"""Half the bucket's inner width across (y), m; chosen so the bucket holds about 23 particles."""
+BUCKET_INNER_HALF_WIDTH_M = MACHINE.bucket.inner_half_width_m
+"""Half the bucket's inner width across (y), m."""
 
 
 def inside_bucket(points_in_bucket_frame: np.ndarray) -> np.ndarray:
