@@ -24,6 +24,7 @@ COMMANDS = [
     "autoscoop.commands.bench_cmd",
     "autoscoop.commands.config_cmd",
     "autoscoop.commands.payload_cmd",
+    "autoscoop.commands.machine_cmd",
     "autoscoop.commands.export_cmd",
     "autoscoop.commands.ros_cmd",
     "autoscoop.commands.ros2_cmd",

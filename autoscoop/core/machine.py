@@ -191,6 +191,11 @@ class Bucket(Part):
     """the inner outline in the bucket frame, (x, z) m, clockwise and convex (a particle is inside when it lies
     within it in x-z and within the inner width in y)."""
     rated_load_kg: Positive
+    rated_load_basis: Literal["sae_j818", "stated"] = "sae_j818"
+    """how the rated load was set: ``sae_j818`` (the default): at most 50 % of the static tipping load at full
+    reach, as SAE J818 and ISO 14397-1 rate a skid-steer, and ``machine check`` holds it to that; ``stated``: as
+    its source states it (a paper, a datasheet), and ``machine check`` only requires the machine to stand with
+    it at full reach, printing the SAE rating beside it."""
 
     @field_validator("inside_polygon_m")
     @classmethod
@@ -254,7 +259,9 @@ class Machine(Part):
     description: str
     licence: str = Field(min_length=1)
     mjcf: str = Field(min_length=1)
-    """the MJCF file, relative to the machine folder."""
+    """the robot's MJCF file, relative to the machine folder."""
+    scene: str = Field(min_length=1)
+    """the scene's MJCF file (ground, light, camera, solver) that includes the robot's, relative to the folder."""
     units: Units
     chassis: Chassis
     wheels: Wheels
@@ -289,10 +296,17 @@ class Machine(Part):
         return self._digest
 
     def mjcf_path(self) -> Path:
-        """The MJCF file, resolved against the machine folder."""
+        """The robot's MJCF file, resolved against the machine folder."""
+        return self._file("mjcf", self.mjcf)
+
+    def scene_path(self) -> Path:
+        """The scene's MJCF file, resolved against the machine folder."""
+        return self._file("scene", self.scene)
+
+    def _file(self, field: str, name: str) -> Path:
         if self._folder is None:
-            raise MachineError(f"machine {self.name}: built without a folder, so mjcf {self.mjcf!r} names no file")
-        return (self._folder / self.mjcf).resolve()
+            raise MachineError(f"machine {self.name}: built without a folder, so {field} {name!r} names no file")
+        return (self._folder / name).resolve()
 
 
 def polygon_signed_area(points: list[tuple[float, float]]) -> float:
@@ -383,9 +397,10 @@ def load_machine(name_or_dir: str | Path = DEFAULT_MACHINE) -> Machine:
     except ValueError as error:
         raise MachineError(str(error)) from None
     machine = machine_from_dict(data, str(path))
-    mjcf = (folder / machine.mjcf).resolve()
-    if not mjcf.is_file():
-        raise MachineError(f"{path}: mjcf = {machine.mjcf!r}: no such file ({mjcf})")
+    for field in ("mjcf", "scene"):
+        named = getattr(machine, field)
+        if not (folder / named).resolve().is_file():
+            raise MachineError(f"{path}: {field} = {named!r}: no such file ({(folder / named).resolve()})")
     machine._folder = folder
     machine._digest = hashlib.sha256(text.encode()).hexdigest()
     return machine

@@ -1,0 +1,139 @@
+"""``autoscoop machine check NAME|DIR`` and ``autoscoop machine new NAME --like komodo --scale S``.
+
+``check`` validates a machine folder: machine.yaml against the schema, the MJCF compiles and its joints,
+ranges, masses and limits agree with the YAML, the bucket's heaped capacity, the terminal point within
+reach, and the static tipping margin at full reach with the rated load. Every failure names the field
+and what is wrong; exit 2 when any fails. ``new`` writes a scaled copy of a machine (Froude scaling:
+``autoscoop.core.machine_scaling``) as a starting point. docs/machines.md describes each field.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+import yaml
+
+from autoscoop.commands import options
+from autoscoop.core import machine_checks
+from autoscoop.core.machine import (
+    DEFAULT_MACHINE,
+    MACHINE_FILE,
+    MAX_MACHINE_BYTES,
+    Machine,
+    MachineError,
+    load_machine,
+    machine_folder,
+    machine_from_dict,
+)
+from autoscoop.core.machine_scaling import scale_machine_data, scale_mjcf
+from autoscoop.core.safe_files import parse_yaml, read_text_bounded, write_text_atomically
+from autoscoop.sim import machine_model
+
+MJCF_FILE = "loader.xml"
+"""Name of the MJCF that ``new`` writes into the new folder."""
+
+
+def register(subparsers: argparse._SubParsersAction) -> None:
+    parser = subparsers.add_parser("machine", help="check a machine folder, or write a scaled new one",
+                                   description=__doc__)
+    actions = parser.add_subparsers(dest="machine_action", metavar="ACTION", required=True)
+    check = actions.add_parser("check", help="validate a machine folder and print what it can do",
+                               description=__doc__)
+    check.add_argument("machine", nargs="?", default=DEFAULT_MACHINE, metavar="NAME|DIR",
+                       help=f"a shipped machine's name or a machine folder (default {DEFAULT_MACHINE})")
+    check.set_defaults(func=run_check)
+    new = actions.add_parser("new", help="write a scaled copy of a machine as a starting point",
+                             description=__doc__)
+    new.add_argument("name", metavar="NAME", help="the new machine's name (lower case letters, digits, - and _)")
+    new.add_argument("--like", default=DEFAULT_MACHINE, metavar="NAME|DIR",
+                     help=f"the machine to start from (default {DEFAULT_MACHINE})")
+    new.add_argument("--scale", type=options.NumberIn(0.1, 10.0), default=1.0, metavar="S",
+                     help="length scale factor (masses S^3, torques S^4, times sqrt(S); default 1)")
+    new.add_argument("--out", type=Path, metavar="DIR", help="folder to write (must not hold a machine.yaml; "
+                                                             "default ./NAME)")
+    new.set_defaults(func=run_new)
+
+
+def check_machine(machine: Machine) -> tuple[list[str], list[str]]:
+    """Lines describing the machine, and its problems (empty when it passes)."""
+    model = machine_model.load_model(machine)
+    problems = machine_model.disagreements(machine, model) + machine_checks.problems(machine)
+    cap = machine_checks.capacity(machine)
+    top = machine_checks.reach(machine)
+    tip = machine_checks.tipping(machine)
+    rated = machine.bucket.rated_load_kg
+    sae_kg = machine_checks.RATED_SHARE_OF_TIPPING_LOAD * tip.tipping_load_kg
+    lines = [
+        f"machine            {machine.name}: {machine.description}",
+        f"folder             {machine.folder}  (sha256 {machine.digest[:12]})",
+        f"mjcf               {machine.mjcf_path()}: {model.nbody - 1} bodies, {model.njnt} joints, "
+        f"{model.nu} actuators",
+        f"robot mass         {tip.robot_mass_kg:.3f} kg",
+        f"bucket capacity    heaped {1000 * cap.heaped_m3:.2f} L, struck {1000 * cap.struck_m3:.2f} L "
+        f"(SAE J742 heap at 1:2 over a {cap.strike_length_m:.3f} m strike plane)",
+        f"rated load         {rated:g} kg ({rated / cap.heaped_m3 / 1000:.2f} t/m^3 over the heaped capacity; "
+        f"basis {machine.bucket.rated_load_basis})",
+        f"reach              cutting edge up to {top.tip_height_m:.3f} m (lift {top.lift_rad:.3f}, tilt "
+        f"{top.tilt_rad:.3f} rad); terminal point {machine.task.terminal_height_m:g} m high",
+        f"tipping            static tipping load at full reach {tip.tipping_load_kg:.2f} kg (load centre "
+        f"x {tip.load_centre_x_m:.3f} m, lift {tip.lift_rad:.3f} rad); rated load "
+        f"{100 * tip.rated_share:.0f} % of it; SAE J818 / ISO 14397-1 rating (50 %) {sae_kg:.2f} kg",
+    ]
+    return lines, problems
+
+
+def run_check(args: argparse.Namespace) -> int:
+    try:
+        machine = load_machine(args.machine)
+        lines, problems = check_machine(machine)
+    except MachineError as error:
+        print(f"autoscoop machine check: {error}", file=sys.stderr)
+        return 2
+    print("\n".join(lines))
+    source = machine.folder / MACHINE_FILE if machine.folder else machine.name
+    for problem in problems:
+        print(f"autoscoop machine check: {source}: {problem}", file=sys.stderr)
+    if problems:
+        print(f"{machine.name}: {len(problems)} problem(s)", file=sys.stderr)
+        return 2
+    print(f"{machine.name}: passes")
+    return 0
+
+
+def run_new(args: argparse.Namespace) -> int:
+    source_folder = machine_folder(args.like)
+    base = load_machine(source_folder)
+    out = args.out or Path(args.name)
+    if (out / MACHINE_FILE).exists():
+        raise ValueError(f"--out {out}: already holds a {MACHINE_FILE}; choose a new folder")
+    data = parse_yaml(read_text_bounded(source_folder / MACHINE_FILE, MAX_MACHINE_BYTES, "machine file"),
+                      f"machine file {source_folder / MACHINE_FILE}")
+    scaled = scale_machine_data(data, args.scale)
+    scaled.update(name=args.name, mjcf=MJCF_FILE,
+                  description=f"{base.name} scaled by {args.scale:g} (Froude scaling); describe your machine here")
+    machine_from_dict(scaled, f"the new {MACHINE_FILE}")  # the scaled numbers must still be a machine
+    mjcf = scale_mjcf(read_text_bounded(base.mjcf_path(), MAX_MACHINE_BYTES * 8, "MJCF"), args.scale,
+                      f"{args.name}: {base.name}'s MJCF scaled by {args.scale:g} (Froude scaling) by autoscoop "
+                      "machine new; machine.yaml holds the numbers")
+    yaml_text = (f"# {args.name}: {base.name} scaled by {args.scale:g} (lengths x S, masses x S^3, torques x S^4, "
+                 "times x sqrt(S)).\n# Field by field: docs/machines.md. Replace the numbers with your machine's "
+                 "and say where each came from in README.md.\n" + _dump(scaled))
+    readme = (f"# {args.name}: where each number came from\n\n"
+              f"Written by `autoscoop machine new {args.name} --like {base.name} --scale {args.scale:g}`: every "
+              f"number is {base.name}'s (see its README) scaled by Froude scaling with S = {args.scale:g}: lengths "
+              "x S, masses x S^3, inertias x S^5, torques x S^4, damping x S^3.5, linear speeds x sqrt(S), "
+              "angular speeds x 1/sqrt(S); angles, friction, the control period and the physics step unchanged. "
+              "Replace each with your machine's measured or datasheet value and name its source here.\n\n"
+              f"Licence: as {base.name}'s ({base.licence}).\n")
+    write_text_atomically(out / MJCF_FILE, mjcf)
+    write_text_atomically(out / "README.md", readme)
+    write_text_atomically(out / MACHINE_FILE, yaml_text)  # last: a folder with a machine.yaml is complete
+    print(f"wrote {out / MACHINE_FILE}, {out / MJCF_FILE}, {out / 'README.md'}; check it with "
+          f"`autoscoop machine check {out}`")
+    return 0
+
+
+def _dump(data: dict) -> str:
+    return yaml.safe_dump(data, sort_keys=False, default_flow_style=None, width=120)
