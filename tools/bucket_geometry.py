@@ -1,4 +1,4 @@
-"""Print the bucket's collision plates for ``autoscoop/assets/loader.xml``.
+"""Print the bucket's collision plates for ``autoscoop/machines/komodo/loader.xml``.
 
 The bucket's inner outline is the paper's quadrilateral (docs/definitions.md): tilt joint J, point A 0.124 m
 from J at +46 deg, cutting edge (tip) 0.215 m from J at 0 deg, point B 0.10 m from J at -41 deg,

@@ -18,7 +18,7 @@ from __future__ import annotations
 import hashlib
 from importlib import resources
 from pathlib import Path
-from typing import Annotated, Any, Literal, Self
+from typing import Annotated, Any, Literal
 
 from pydantic import (
     AfterValidator,
@@ -27,8 +27,8 @@ from pydantic import (
     Field,
     PrivateAttr,
     ValidationError,
+    ValidationInfo,
     field_validator,
-    model_validator,
 )
 
 from autoscoop.core.safe_files import parse_yaml, quote, read_text_bounded
@@ -121,15 +121,15 @@ class Arm(Part):
     com_along_m: Positive
     """arm's centre of mass along the lift joint -> tilt joint line, m."""
 
-    @model_validator(mode="after")
-    def _com_on_the_arm(self) -> Self:
-        length = (self.tilt_joint_from_lift_joint_m[0] ** 2 + self.tilt_joint_from_lift_joint_m[1] ** 2) ** 0.5
-        if length <= 0.0:
-            raise ValueError("tilt_joint_from_lift_joint_m: the tilt joint must not sit on the lift joint")
-        if self.com_along_m > length:
-            raise ValueError(f"com_along_m = {self.com_along_m} is beyond the tilt joint ({length:.4g} m along "
-                             "the arm)")
-        return self
+    @field_validator("com_along_m")
+    @classmethod
+    def _com_on_the_arm(cls, value: float, info: ValidationInfo) -> float:
+        line = info.data.get("tilt_joint_from_lift_joint_m")
+        if line is not None:
+            length = (line[0] ** 2 + line[1] ** 2) ** 0.5
+            if value > length:
+                raise ValueError(f"beyond the tilt joint ({length:.4g} m along the arm from the lift joint)")
+        return value
 
 
 class Joint(Part):
@@ -226,12 +226,13 @@ class Sensor(Part):
     quantity: Literal["joint_position", "joint_velocity", "joint_torque", "position", "range", "force"]
     unit: str
 
-    @model_validator(mode="after")
-    def _unit_agrees(self) -> Self:
-        wanted = SENSOR_UNITS[self.quantity]
-        if self.unit != wanted:
-            raise ValueError(f"unit {self.unit!r} disagrees with quantity {self.quantity!r}, which is in {wanted!r}")
-        return self
+    @field_validator("unit")
+    @classmethod
+    def _unit_agrees(cls, value: str, info: ValidationInfo) -> str:
+        quantity = info.data.get("quantity")
+        if quantity is not None and value != SENSOR_UNITS[quantity]:
+            raise ValueError(f"disagrees with quantity {quantity!r}, which is in {SENSOR_UNITS[quantity]!r}")
+        return value
 
 
 class Control(Part):
@@ -259,9 +260,7 @@ class Machine(Part):
     description: str
     licence: str = Field(min_length=1)
     mjcf: str = Field(min_length=1)
-    """the robot's MJCF file, relative to the machine folder."""
-    scene: str = Field(min_length=1)
-    """the scene's MJCF file (ground, light, camera, solver) that includes the robot's, relative to the folder."""
+    """the MJCF file, relative to the machine folder."""
     units: Units
     chassis: Chassis
     wheels: Wheels
@@ -296,17 +295,10 @@ class Machine(Part):
         return self._digest
 
     def mjcf_path(self) -> Path:
-        """The robot's MJCF file, resolved against the machine folder."""
-        return self._file("mjcf", self.mjcf)
-
-    def scene_path(self) -> Path:
-        """The scene's MJCF file, resolved against the machine folder."""
-        return self._file("scene", self.scene)
-
-    def _file(self, field: str, name: str) -> Path:
+        """The MJCF file, resolved against the machine folder."""
         if self._folder is None:
-            raise MachineError(f"machine {self.name}: built without a folder, so {field} {name!r} names no file")
-        return (self._folder / name).resolve()
+            raise MachineError(f"machine {self.name}: built without a folder, so mjcf {self.mjcf!r} names no file")
+        return (self._folder / self.mjcf).resolve()
 
 
 def polygon_signed_area(points: list[tuple[float, float]]) -> float:
@@ -327,7 +319,8 @@ def describe_validation_error(error: ValidationError, source: str, most: int = 8
     lines = []
     for record in error.errors()[:most]:
         where = _where(tuple(p for p in record["loc"] if p not in ("function-after", "tuple")))
-        value = "" if record["type"] in ("missing", "extra_forbidden") else f" = {quote(record['input'], 80)}"
+        shown = record["type"] not in ("missing", "extra_forbidden") and not isinstance(record["input"], dict)
+        value = f" = {quote(record['input'], 80)}" if shown else ""
         message = record["msg"].removeprefix("Value error, ")
         if record["type"] == "extra_forbidden":
             message = "unknown key (not part of the machine schema; see docs/machines.md)"
@@ -397,10 +390,9 @@ def load_machine(name_or_dir: str | Path = DEFAULT_MACHINE) -> Machine:
     except ValueError as error:
         raise MachineError(str(error)) from None
     machine = machine_from_dict(data, str(path))
-    for field in ("mjcf", "scene"):
-        named = getattr(machine, field)
-        if not (folder / named).resolve().is_file():
-            raise MachineError(f"{path}: {field} = {named!r}: no such file ({(folder / named).resolve()})")
+    mjcf = (folder / machine.mjcf).resolve()
+    if not mjcf.is_file():
+        raise MachineError(f"{path}: mjcf = {machine.mjcf!r}: no such file ({mjcf})")
     machine._folder = folder
     machine._digest = hashlib.sha256(text.encode()).hexdigest()
     return machine

@@ -19,7 +19,7 @@ from autoscoop.sim.glbackend import INSTALL_HINT
 FRAME_SIZE = (768, 432)
 """Width and height of rendered frames, pixels (16:9, both multiples of 16 for video encoders)."""
 CAMERA = "side"
-"""The scene's camera (``assets/scene.xml``) that frames the loader and the pile from the side."""
+"""The scene's camera (``machines/komodo/scene.xml``) that frames the loader and the pile from the side."""
 
 
 def frame_interval_steps(timestep_s: float, fps: float) -> int:

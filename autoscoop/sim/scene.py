@@ -9,7 +9,6 @@ from __future__ import annotations
 import math
 from collections import deque
 from collections.abc import Callable
-from importlib import resources
 
 import mujoco
 import numpy as np
@@ -32,9 +31,14 @@ PARTICLE_CONTYPE, PARTICLE_CONAFFINITY = 2, 7
 tested against itself."""
 
 
+SCENE_FILE = "scene.xml"
+"""The scene beside a machine's MJCF that includes it."""
+
+
 def scene_path() -> str:
-    """Path of the shipped ``scene.xml`` (which includes ``loader.xml``)."""
-    return str(resources.files("autoscoop") / "assets" / "scene.xml")
+    """Path of the default machine's scene (``machines/komodo/scene.xml``: ground, light, camera and solver
+    settings; it includes the machine's MJCF, ``loader.xml``)."""
+    return str(kinematics.MACHINE.mjcf_path().with_name(SCENE_FILE))
 
 
 SETTLE_EXTRA_S = 3.0
