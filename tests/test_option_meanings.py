@@ -45,6 +45,8 @@ MEANINGS: dict[str, Meaning] = {
                         metavar="FILE.yaml", words=("config",)),
     "--set": Meaning("one scene or task config key, repeatable", action="append", metavar="KEY=VALUE",
                      dest="overrides", words=("config",)),
+    "--machine": Meaning("the loader this process runs: a shipped machine's name or a machine folder",
+                         metavar="NAME|DIR", words=("machine",)),
     "--robot": Meaning("the robot file: topics, limits, timeouts, calibration, units", type="Path",
                        metavar="FILE.yaml", words=("robot",)),
     "--bag": Meaning("a recorded bag file (the node's topics; ROS 1 bag or MCAP)", type=ANY,

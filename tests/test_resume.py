@@ -104,13 +104,13 @@ def resumed_from(monkeypatch):
     from autoscoop.training import run as train_mod
 
     seen = []
-    original = train_mod._run
+    original = train_mod.train_model
 
     def spy(run_dir, config, spec, info, done, model, progress, **kwargs):
         seen.append(done)
         return original(run_dir, config, spec, info, done, model, progress, **kwargs)
 
-    monkeypatch.setattr(train_mod, "_run", spy)
+    monkeypatch.setattr(train_mod, "train_model", spy)
     return seen
 
 
@@ -346,7 +346,7 @@ def test_kill_9_while_checkpoints_are_swapped_resumes_from_the_newest(tmp_path, 
 @pytest.fixture
 def interrupted(tmp_path, monkeypatch):
     """An interrupted ddpg run (run.json, config.yaml, hyperparams.yaml) and the list of resumes that got as
-    far as training (``_run`` replaced: none trains)."""
+    far as training (``train_model`` replaced: none trains)."""
     from autoscoop.training import run as train_mod
     from autoscoop.training.settings import load_hyperparams
 
@@ -358,7 +358,7 @@ def interrupted(tmp_path, monkeypatch):
     save_yaml(ScoopConfig(), run_dir / "config.yaml")
     (run_dir / "hyperparams.yaml").write_text(yaml.safe_dump(load_hyperparams("ddpg")))
     resumed = []
-    monkeypatch.setattr(train_mod, "_run", lambda run_dir, config, spec, info, **kwargs:
+    monkeypatch.setattr(train_mod, "train_model", lambda run_dir, config, spec, info, **kwargs:
                         resumed.append(kwargs["progress"]) or run_dir)
     return run_dir, resumed
 

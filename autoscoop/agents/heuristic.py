@@ -11,12 +11,13 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
 
 import numpy as np
 
 from autoscoop.core import kinematics
 from autoscoop.core.config import RewardConfig
+from autoscoop.core.machine import MachineError
 from autoscoop.core.state import CommandLimits, advance_targets
 
 
@@ -53,6 +54,22 @@ class HeuristicParams:
     limits: CommandLimits = field(default_factory=CommandLimits)
 
 
+def machine_params(**given: object) -> HeuristicParams:
+    """The scripted scoop's parameters for the machine this process runs: the defaults, then the machine's
+    ``scripted_scoop`` section, then ``given``.
+
+    Raises:
+        MachineError: the machine's section names a parameter that does not exist.
+    """
+    tuned = dict(kinematics.MACHINE.scripted_scoop)
+    known = {f.name for f in fields(HeuristicParams)} - {"limits", "terminal_dx_m", "terminal_z_m", "control_period_s"}
+    unknown = sorted(set(tuned) - known)
+    if unknown:
+        raise MachineError(f"machine {kinematics.MACHINE.name}: scripted_scoop.{unknown[0]}: not a parameter of the "
+                           f"scripted scoop; known: {', '.join(sorted(known))}")
+    return HeuristicParams(**{**tuned, **given})
+
+
 def lift_for_tip_height(tip_z_m: float, tilt_rad: float) -> float:
     """The lift angle that puts the tip at ``tip_z_m`` for a given tilt (clipped to the lift range)."""
     lifts = np.linspace(*kinematics.LIFT_RANGE_RAD, 401)
@@ -70,7 +87,7 @@ class HeuristicScooper:
     name = "heuristic"
 
     def __init__(self, params: HeuristicParams | None = None) -> None:
-        self.params = params or HeuristicParams()
+        self.params = params or machine_params()
         self._exit_lift = lift_for_tip_height(self.params.terminal_z_m + self.params.exit_height_margin_m,
                                               self.params.exit_tilt_rad)
         self.reset()

@@ -2,17 +2,18 @@
 
 from __future__ import annotations
 
-from importlib import resources
 from pathlib import Path
 
-from autoscoop.agents.heuristic import HeuristicParams, HeuristicScooper
+from autoscoop.agents.heuristic import HeuristicScooper, machine_params
+from autoscoop.core import kinematics
 from autoscoop.core.config import ScoopConfig
 from autoscoop.core.policy import Policy
 from autoscoop.core.safe_files import UnsafeInputError, quote, read_json
 from autoscoop.core.state import CommandLimits
 
 DEFAULT_POLICY = "default"
-"""Name of the policy shipped inside the package (``autoscoop/policies/default.safetensors``)."""
+"""Name of the machine's shipped policy (the Komodo's: ``autoscoop/policies/default.safetensors``; another
+machine's: the file its ``machine.yaml`` names as ``default_policy``)."""
 
 
 class PolicyError(ValueError):
@@ -21,15 +22,24 @@ class PolicyError(ValueError):
 
 def heuristic_for(config: ScoopConfig) -> HeuristicScooper:
     """The scripted baseline, aimed at the config's terminal point, with its control period and speed limit."""
-    return HeuristicScooper(HeuristicParams(
+    return HeuristicScooper(machine_params(
         terminal_dx_m=config.reward.terminal_dx_m, terminal_z_m=config.reward.terminal_z_m,
         control_period_s=config.env.control_period_s,
         limits=CommandLimits.for_robot(config.robot)))
 
 
 def default_policy_path() -> Path:
-    """The shipped policy's weights file."""
-    return Path(str(resources.files("autoscoop") / "policies" / "default.safetensors"))
+    """The shipped policy's weights file for the machine this process runs.
+
+    Raises:
+        PolicyError: the machine ships no trained controller.
+    """
+    path = kinematics.MACHINE.default_policy_path()
+    if path is None:
+        raise PolicyError(f"machine {kinematics.MACHINE.name} ships no trained controller (its machine.yaml names no "
+                          f"default_policy): train one with `autoscoop train --machine {kinematics.MACHINE.name}` "
+                          "and pass its run directory as --policy, or use --policy heuristic")
+    return path
 
 
 def load_policy(spec: str, config: ScoopConfig, trust: bool = False) -> Policy:
@@ -56,7 +66,7 @@ def load_policy(spec: str, config: ScoopConfig, trust: bool = False) -> Policy:
     if spec == DEFAULT_POLICY:
         path = default_policy_path()
         if not path.is_file():
-            raise PolicyError("the shipped policy is missing from this installation (autoscoop/policies/default.*)")
+            raise PolicyError(f"the shipped policy is missing from this installation ({path})")
         return ActorPolicy(path, name=DEFAULT_POLICY)
     path = Path(spec)
     if path.is_dir():

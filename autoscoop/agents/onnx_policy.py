@@ -15,6 +15,8 @@ from pathlib import Path
 
 import numpy as np
 
+from autoscoop.core import kinematics
+from autoscoop.core.machine import refuse_other_machine
 from autoscoop.core.safe_files import quote
 from autoscoop.core.state import (
     ACTION_NAMES,
@@ -88,6 +90,7 @@ class OnnxPolicy:
                              f"(batch, {ACTION_SIZE}) ({', '.join(ACTION_NAMES)}), got "
                              f"{quote([(o.name, o.type, o.shape) for o in outputs])}")
         self.name = self.metadata.get("policy_name") or self.path.stem
+        refuse_other_machine(self.metadata, kinematics.MACHINE, f"ONNX policy {self.path}")
         self.state_frame = recorded_state_frame(self.metadata, f"ONNX policy {self.path}")
         self._check_one_step()
 

@@ -17,6 +17,8 @@ from safetensors import SafetensorError, safe_open
 from safetensors.torch import load_file, save_file
 
 from autoscoop.agents.networks import PaperActor
+from autoscoop.core import kinematics
+from autoscoop.core.machine import machine_record, refuse_other_machine
 from autoscoop.core.safe_files import UnsafeInputError, atomic_output, quote, read_json, write_json_atomically
 from autoscoop.core.state import (
     ActorInputHistory,
@@ -56,7 +58,7 @@ def save_actor(actor: PaperActor, path: str | Path, metadata: dict[str, Any] | N
     with atomic_output(path) as tmp:
         save_file(tensors, str(tmp))
     sidecar = {"format": FORMAT, "layers": list(actor.layers), "output": "tanh", "sha256": sha256_of(path),
-               **(metadata or {})}
+               **machine_record(kinematics.MACHINE), **(metadata or {})}
     if actor.history_steps > 1:  # files of the state alone stay as they were
         sidecar["history_steps"] = actor.history_steps
     write_json_atomically(path.with_suffix(".json"), sidecar)
@@ -142,6 +144,7 @@ class ActorPolicy:
     def __init__(self, path: str | Path, name: str | None = None) -> None:
         self.actor, self.metadata = load_actor(path)
         self.name = name or Path(path).stem
+        refuse_other_machine(self.metadata, kinematics.MACHINE, str(path))
         try:
             self.state_frame = recorded_state_frame(self.metadata, path)
         except ValueError as error:

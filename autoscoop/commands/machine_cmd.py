@@ -10,17 +10,24 @@ and what is wrong; exit 2 when any fails. ``new`` writes a scaled copy of a mach
 from __future__ import annotations
 
 import argparse
+import json
+import subprocess
 import sys
+import tempfile
+from dataclasses import fields
 from pathlib import Path
 
 import yaml
 
+from autoscoop.agents.heuristic import HeuristicParams
 from autoscoop.commands import options
 from autoscoop.core import machine_checks
+from autoscoop.core.config import ROBOT_PRESET, ScoopConfig
 from autoscoop.core.machine import (
     DEFAULT_MACHINE,
     MACHINE_FILE,
     MAX_MACHINE_BYTES,
+    SCENE_FILE,
     Machine,
     MachineError,
     load_machine,
@@ -95,11 +102,44 @@ def run_check(args: argparse.Namespace) -> int:
     source = machine.folder / MACHINE_FILE if machine.folder else machine.name
     for problem in problems:
         print(f"autoscoop machine check: {source}: {problem}", file=sys.stderr)
+    if not problems:
+        line, problem = scripted_scoop(machine)
+        if line:
+            print(line)
+        problems += [problem] if problem else []
+        for item in [problem] if problem else []:
+            print(f"autoscoop machine check: {source}: {item}", file=sys.stderr)
     if problems:
         print(f"{machine.name}: {len(problems)} problem(s)", file=sys.stderr)
         return 2
     print(f"{machine.name}: passes")
     return 0
+
+
+SCOOP_CHECK_EPISODES = 3
+"""Scripted scoops ``machine check`` runs on the machine's nominal pile (seeds 0-2)."""
+
+
+def scripted_scoop(machine: Machine) -> tuple[str, str]:
+    """Run the scripted scoop on the machine's nominal pile in a process of its own (a process runs one machine):
+    the line to print, and the problem ('' when at least one of :data:`SCOOP_CHECK_EPISODES` scoops succeeds).
+    The machine's ``scene``, ``robot_preset`` and ``scripted_scoop`` sections are checked there too."""
+    with tempfile.TemporaryDirectory(prefix="autoscoop-machine-check-") as tmp:
+        summary = Path(tmp) / "scoop.json"
+        command = [sys.executable, "-m", "autoscoop.cli", "eval", "--machine", str(machine.folder), "--policy",
+                   "heuristic", "--episodes", str(SCOOP_CHECK_EPISODES), "--json", str(summary), "--allow-empty"]
+        done = subprocess.run(command, capture_output=True, text=True, check=False)
+        if done.returncode != 0 or not summary.is_file():
+            why = (done.stderr.strip().splitlines() or [f"exit {done.returncode}"])[-1]
+            return "", f"the scripted scoop did not run: {why}"
+        result = json.loads(summary.read_text())
+    success, fill = result["success_rate"], result["fill_factor_mean"]
+    line = (f"scripted scoop     {SCOOP_CHECK_EPISODES} on the nominal pile: success {success:.2f}, fill factor "
+            f"{fill:.2f}, cycle {result['cycle_time_mean'] or float('nan'):.2f} s")
+    if success == 0.0:
+        return line, ("the scripted scoop completes no scoop on the nominal pile: tune its scripted_scoop section or "
+                      "the scene's robot.start_lift_rad (docs/machines.md)")
+    return line, ""
 
 
 def run_new(args: argparse.Namespace) -> int:
@@ -113,6 +153,9 @@ def run_new(args: argparse.Namespace) -> int:
     scaled = scale_machine_data(data, args.scale)
     scaled.update(name=args.name, mjcf=MJCF_FILE,
                   description=f"{base.name} scaled by {args.scale:g} (Froude scaling); describe your machine here")
+    scaled.pop("default_policy", None)  # a controller belongs to the machine it was trained on
+    scaled["task"]["target_cycle_time_s"] = float(format(base.task.target_cycle_time_s * args.scale ** 0.5, ".6g"))
+    scaled.update(scaled_world(base, args.scale))
     machine_from_dict(scaled, f"the new {MACHINE_FILE}")  # the scaled numbers must still be a machine
     mjcf = scale_mjcf(read_text_bounded(base.mjcf_path(), MAX_MACHINE_BYTES * 8, "MJCF"), args.scale,
                       f"{args.name}: {base.name}'s MJCF scaled by {args.scale:g} (Froude scaling) by autoscoop "
@@ -128,11 +171,62 @@ def run_new(args: argparse.Namespace) -> int:
               "Replace each with your machine's measured or datasheet value and name its source here.\n\n"
               f"Licence: as {base.name}'s ({base.licence}).\n")
     write_text_atomically(out / MJCF_FILE, mjcf)
+    write_text_atomically(out / SCENE_FILE, scene_including(base, MJCF_FILE))
     write_text_atomically(out / "README.md", readme)
     write_text_atomically(out / MACHINE_FILE, yaml_text)  # last: a folder with a machine.yaml is complete
-    print(f"wrote {out / MACHINE_FILE}, {out / MJCF_FILE}, {out / 'README.md'}; check it with "
+    print(f"wrote {out / MACHINE_FILE}, {out / MJCF_FILE}, {out / SCENE_FILE}, {out / 'README.md'}; check it with "
           f"`autoscoop machine check {out}`")
     return 0
+
+
+SCALED_UNITS = {"m": 1.0, "kg": 3.0}
+"""Scene settings that follow the machine's size, by unit: lengths x S, masses x S^3 (the pile's particles scale
+with the bucket, so a full bucket holds as many of them; sensor noise and angles stay)."""
+FROM_MACHINE_KEYS = {"reward.terminal_dx_m", "reward.terminal_z_m", "reward.rated_load_kg"}
+"""Scene settings whose default is a field of machine.yaml (scaled there)."""
+SCALED_PRESET = {"particle_mass_kg": 3.0, "particle_radius_m": 1.0, "start_gap_m": 1.0}
+"""Ranges of the robot preset that follow the machine's size, with their power of S."""
+
+
+def _rounded(value: float) -> float:
+    return float(format(value, ".6g"))
+
+
+def scaled_world(base: Machine, scale: float) -> dict[str, dict]:
+    """The ``scene``, ``robot_preset`` and ``scripted_scoop`` sections of ``base`` scaled by ``scale``: every
+    length and mass setting of its world (the pile's particles, the start gap, the reward's tolerances, the
+    shift's hopper), the preset's particle and gap ranges, the scripted scoop's distances (x S), durations in
+    control periods (x sqrt(S): the period stays) and angle steps per period (x 1/sqrt(S))."""
+    world = ScoopConfig().with_overrides(base.scene)
+    scene = {}
+    for key in ScoopConfig.dotted_keys():
+        section, _, name = key.partition(".")
+        field = type(getattr(world, section)).model_fields[name]
+        unit = (field.json_schema_extra or {}).get("unit")
+        value = getattr(getattr(world, section), name)
+        if (unit in SCALED_UNITS and key not in FROM_MACHINE_KEYS and isinstance(value, float) and value != 0.0):
+            scene[key] = _rounded(value * scale ** SCALED_UNITS[unit])
+    preset = {**ROBOT_PRESET, **{k: tuple(v) for k, v in base.robot_preset.items()}}
+    robot_preset = {name: [_rounded(v * scale ** power) for v in preset[name]] for name, power in SCALED_PRESET.items()}
+    scripted = {**{f.name: f.default for f in fields(HeuristicParams)}, **base.scripted_scoop}
+    scripted_scoop = {}
+    for name, value in scripted.items():
+        if name.endswith("_m") and not name.startswith("terminal_") and value:
+            scripted_scoop[name] = _rounded(value * scale)  # a distance
+        elif name.endswith("_steps") and isinstance(value, int):
+            scripted_scoop[name] = max(1, round(value * scale ** 0.5))  # a duration, in control periods
+        elif name.endswith("_step_rad"):
+            scripted_scoop[name] = _rounded(value / scale ** 0.5)  # an angular speed, per control period
+    return {"scene": scene, "robot_preset": robot_preset, "scripted_scoop": scripted_scoop}
+
+
+def scene_including(base: Machine, mjcf_name: str) -> str:
+    """The base machine's scene (ground, light, camera, solver) including ``mjcf_name`` instead of its MJCF."""
+    text = read_text_bounded(base.mjcf_path().with_name(SCENE_FILE), MAX_MACHINE_BYTES, "scene")
+    old = f'<include file="{base.mjcf_path().name}"/>'
+    if old not in text:
+        raise ValueError(f"{base.mjcf_path().with_name(SCENE_FILE)}: does not include {base.mjcf_path().name}")
+    return text.replace(old, f'<include file="{mjcf_name}"/>')
 
 
 def _dump(data: dict) -> str:

@@ -26,6 +26,10 @@ from pydantic.fields import FieldInfo
 from autoscoop.core import kinematics
 from autoscoop.core.safe_files import UnsafeInputError, parse_yaml, quote, read_yaml, write_text_atomically
 
+_MACHINE = kinematics.MACHINE
+"""The machine this process runs: its actuator limits, friction, task lengths, rated load and control period are
+the defaults of those settings, and its ``scene`` section replaces the defaults it names (see the end)."""
+
 
 class ConfigError(ValueError):
     """A configuration key or value is not allowed; the message names the dotted key and what is allowed.
@@ -233,13 +237,13 @@ class RobotConfig(ConfigModel):
                                     *kinematics.LIFT_RANGE_RAD)
     start_tilt_rad: float = setting(0.0, "rad", "tilt angle at the start", *kinematics.TILT_RANGE_RAD)
     start_gap_jitter_m: float = setting(0.01, "m", "largest random change of the start gap in each episode", 0.0, 0.1)
-    max_speed_mps: float = setting(0.1, "m/s", "drive speed limit, forward and back", 0.01, 0.5)
-    lift_speed_radps: float = setting(0.4, "rad/s", "fastest lift setpoint motion (linear actuator speed)", 0.05, 3.0)
-    tilt_speed_radps: float = setting(1.0, "rad/s", "fastest tilt setpoint motion (linear actuator speed)", 0.05, 5.0)
-    lift_torque_limit_nm: float = setting(150.0, "N*m", "lift actuator torque bound (a heavy pile can stall it)", 1.0, 1000.0)
-    tilt_torque_limit_nm: float = setting(40.0, "N*m", "tilt actuator torque bound", 1.0, 500.0)
-    wheel_torque_limit_nm: float = setting(12.0, "N*m", "torque bound of each wheel motor", 0.5, 100.0)
-    ground_friction: float = setting(0.9, "-", "wheel-ground sliding friction coefficient", 0.05, 2.0)
+    max_speed_mps: float = setting(_MACHINE.actuators.drive.max_speed_mps, "m/s", "drive speed limit, forward and back", 0.01, 0.5)
+    lift_speed_radps: float = setting(_MACHINE.actuators.lift.max_speed_radps, "rad/s", "fastest lift setpoint motion (linear actuator speed)", 0.05, 3.0)
+    tilt_speed_radps: float = setting(_MACHINE.actuators.tilt.max_speed_radps, "rad/s", "fastest tilt setpoint motion (linear actuator speed)", 0.05, 5.0)
+    lift_torque_limit_nm: float = setting(_MACHINE.actuators.lift.torque_limit_nm, "N*m", "lift actuator torque bound (a heavy pile can stall it)", 1.0, 100000.0)
+    tilt_torque_limit_nm: float = setting(_MACHINE.actuators.tilt.torque_limit_nm, "N*m", "tilt actuator torque bound", 1.0, 100000.0)
+    wheel_torque_limit_nm: float = setting(_MACHINE.actuators.drive.wheel_torque_limit_nm, "N*m", "torque bound of each wheel motor", 0.5, 10000.0)
+    ground_friction: float = setting(_MACHINE.wheels.ground_friction, "-", "wheel-ground sliding friction coefficient", 0.05, 2.0)
     bucket_friction: float = setting(0.4, "-", "sliding friction between the steel bucket and a particle", 0.05, 2.0)
 
 
@@ -278,9 +282,9 @@ class RewardConfig(ConfigModel):
                                "it (a success when loaded: scoop.min_fill)", 0.001, 0.5)
     delta_m: float = setting(0.06, "m", "Delta: the tip within it of a particle centre is 'penetrating'", 0.001, 0.5)
     distance_scale_m: float = setting(1.0, "m", "distances are divided by it inside tanh (1 m: the paper's eq. 5)", 0.01, 10.0)
-    terminal_dx_m: float = setting(0.20, "m", "terminal point x from the pile's toe (over the pile, where a scoop ends, raised clear of it)", -1.0, 1.0)
-    terminal_z_m: float = setting(0.30, "m", "terminal point height above the ground", 0.0, 1.0)
-    rated_load_kg: float = setting(7.0, "kg", "rated bucket load; fill factor = mass in bucket / rated load", 0.1, 100.0)
+    terminal_dx_m: float = setting(_MACHINE.task.terminal_dx_m, "m", "terminal point x from the pile's toe (over the pile, where a scoop ends, raised clear of it)", -1.0, 1.0)
+    terminal_z_m: float = setting(_MACHINE.task.terminal_height_m, "m", "terminal point height above the ground", 0.0, 1.0)
+    rated_load_kg: float = setting(_MACHINE.bucket.rated_load_kg, "kg", "rated bucket load; fill factor = mass in bucket / rated load", 0.1, 100.0)
     fill_measure: Literal["mass", "scoop"] = setting(
         "mass", "-", "what the bonus pays for: mass (c_w * min(w, 1), the paper's) or scoop (c_w * min(max(w, "
         "volumetric fill), 1): a bucket full by volume pays as much as one full by mass)")
@@ -316,9 +320,9 @@ class EnvConfig(ConfigModel):
     """Episode timing, physics step and where the state's mass comes from."""
 
     section = "env"
-    control_period_s: float = setting(0.25, "s", "time between actions (a whole number of physics steps)", 0.02, 1.0)
+    control_period_s: float = setting(_MACHINE.control.period_s, "s", "time between actions (a whole number of physics steps)", 0.02, 1.0)
     max_episode_s: float = setting(8.0, "s", "episode time limit", 0.5, 60.0)
-    timestep_s: float = setting(0.25 / 12, "s", "MuJoCo physics step (a divisor of the control period)", 0.0005, 0.04)
+    timestep_s: float = setting(_MACHINE.control.period_s / _MACHINE.control.physics_steps_per_period, "s", "MuJoCo physics step (a divisor of the control period)", 0.0005, 0.04)
     mass_source: Literal["truth", "torque"] = setting(
         "truth", "-", "the state's w_t from counting particles (truth) or from the joint torques (torque); "
         "the reward always counts")
@@ -427,7 +431,8 @@ ROBOT_PRESET: dict[str, tuple[float, ...]] = {
     "prescooped_probability": (0.2,),
     "prescoop_particles": (6.0, 14.0),
 }
-"""The ``robot`` preset: the ranges the shipped policy is trained on (documented in docs/randomize.md)."""
+"""The ``robot`` preset: the ranges the shipped policy is trained on (documented in docs/randomize.md); the ranges
+a machine's ``robot_preset`` names replace these when it runs (``_apply_machine_preset``)."""
 
 
 class RandomizeConfig(ConfigModel):
@@ -445,7 +450,7 @@ class RandomizeConfig(ConfigModel):
     pile_angle_deg: PileAngles = _range(*PILE_ANGLE_RANGE_DEG, "deg", "pile face slope")
     particle_mass_kg: numbers(0.01, 5.0) = _range(0.01, 5.0, "kg", "mass of one particle (material density)")
     particle_friction: numbers(0.0, 2.0) = _range(0.0, 2.0, "-", "sliding friction of particle contacts")
-    particle_radius_m: numbers(0.02, 0.05) = _range(0.02, 0.05, "m", "particle radius (a bank of scenes: "
+    particle_radius_m: numbers(0.01, 0.1) = _range(0.01, 0.1, "m", "particle radius (a bank of scenes: "
                                                   "drawn to the millimetre)")
     n_particles: numbers(8, 200) = _range(8, 200, "-", "number of particles (drawn to a whole row of pile.across)")
     start_gap_m: numbers(0.0, 0.6) = _range(0.0, 0.6, "m", "start gap between tip and pile toe")
@@ -625,3 +630,45 @@ def parse_set_args(pairs: list[str] | None) -> dict[str, Any]:
             raise ConfigError(f"--set expects key=value, got {pair!r}")
         out[key.strip()] = value.strip()
     return out
+
+
+def _apply_machine_scene(machine_scene: Mapping[str, Any], source: str) -> None:
+    """Make the machine's ``scene`` settings the defaults of their keys (every section and ``ScoopConfig()``).
+
+    Raises:
+        ConfigError: a key that does not exist or a value out of its range, naming ``source``.
+    """
+    if not machine_scene:
+        return
+    sections = {field.default_factory.section: field.default_factory
+                for field in ScoopConfig.model_fields.values()}
+    try:
+        checked = ScoopConfig().with_overrides(dict(machine_scene))
+    except ConfigError as error:
+        raise ConfigError(f"{source}: scene: {error}", error.details) from None
+    for key in machine_scene:
+        section, _, name = str(key).partition(".")
+        model = sections[section]
+        model.model_fields[name].default = getattr(getattr(checked, section), name)
+        model.model_rebuild(force=True)
+
+
+def _apply_machine_preset(machine_preset: Mapping[str, Any], source: str) -> None:
+    """Replace the ``robot`` preset's ranges that the machine's ``robot_preset`` names.
+
+    Raises:
+        ConfigError: a name that is not a preset range, or a range outside its key's bounds, naming ``source``.
+    """
+    for name, values in machine_preset.items():
+        if name not in ROBOT_PRESET:
+            raise ConfigError(f"{source}: robot_preset.{name}: not a range of the robot preset; known: "
+                              f"{', '.join(ROBOT_PRESET)}")
+        try:
+            RandomizeConfig(**{name: list(values)})
+        except ConfigError as error:
+            raise ConfigError(f"{source}: robot_preset: {error}", error.details) from None
+        ROBOT_PRESET[name] = tuple(float(v) for v in values)
+
+
+_apply_machine_scene(_MACHINE.scene, str(_MACHINE.folder or _MACHINE.name))
+_apply_machine_preset(_MACHINE.robot_preset, str(_MACHINE.folder or _MACHINE.name))

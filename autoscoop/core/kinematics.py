@@ -3,9 +3,10 @@
 Frame ("chassis frame"): x forward from the chassis centre, z up from the ground under it, metres;
 the arm moves in this x-z plane. Angles in radians. Both arm joints turn about the chassis +y axis
 (y to the robot's left), so a positive angle pitches the part forward-down: a larger lift angle
-lowers the arm, a larger tilt angle tips the cutting edge down. The module's names are the default machine's
-(:mod:`autoscoop.core.machine`, ``autoscoop/machines/komodo/machine.yaml``); its MJCF is built from the
-same numbers and ``autoscoop machine check`` and a test check that they agree.
+lowers the arm, a larger tilt angle tips the cutting edge down. The module's names are the machine this process
+runs (:func:`autoscoop.core.machine.selected_machine`: ``--machine`` or ``$AUTOSCOOP_MACHINE``, else ``komodo``,
+``autoscoop/machines/komodo/machine.yaml``); its MJCF is built from the same numbers and
+``autoscoop machine check`` and a test check that they agree.
 """
 
 from __future__ import annotations
@@ -14,10 +15,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from autoscoop.core.machine import DEFAULT_MACHINE, load_machine
+from autoscoop.core.machine import load_machine, selected_machine
 
-MACHINE = load_machine(DEFAULT_MACHINE)
-"""The machine these names describe (``autoscoop/machines/komodo/machine.yaml``, the source of every number)."""
+MACHINE = load_machine(selected_machine())
+"""The machine these names describe (its ``machine.yaml`` is the source of every number), chosen once per process."""
 
 CHASSIS_CENTRE_HEIGHT_M = MACHINE.chassis.centre_height_m
 ARM_BASE_FROM_CHASSIS_M = MACHINE.arm.base_from_chassis_m

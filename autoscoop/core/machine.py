@@ -16,6 +16,7 @@ Every failure is a :class:`MachineError` whose message names the file and the do
 from __future__ import annotations
 
 import hashlib
+import os
 from importlib import resources
 from pathlib import Path
 from typing import Annotated, Any, Literal
@@ -39,6 +40,11 @@ MACHINE_FILE = "machine.yaml"
 """Name of the description inside a machine folder."""
 MAX_MACHINE_BYTES = 256 * 1024
 """Cap of a machine.yaml autoscoop reads, bytes."""
+SCENE_FILE = "scene.xml"
+"""The scene beside a machine's MJCF (ground, light, camera, solver) that includes it."""
+MACHINE_ENV = "AUTOSCOOP_MACHINE"
+"""Environment variable naming the machine a process runs (a shipped name or a folder); ``--machine`` sets it
+before anything reads the machine, and worker processes inherit it."""
 
 
 class MachineError(ValueError):
@@ -190,6 +196,10 @@ class Bucket(Part):
     inside_polygon_m: list[PointXZ] = Field(min_length=3)
     """the inner outline in the bucket frame, (x, z) m, clockwise and convex (a particle is inside when it lies
     within it in x-z and within the inner width in y)."""
+    capacity_particles: int = Field(strict=True, ge=1, le=10000)
+    """how many particles of the machine's nominal pile (``pile.radius_m``) the bucket holds heaped, measured by
+    dropping them in one at a time (``autoscoop.sim.capacity.fill_until_overflow``): the volumetric fill's
+    denominator."""
     rated_load_kg: Positive
     rated_load_basis: Literal["sae_j818", "stated"] = "sae_j818"
     """how the rated load was set: ``sae_j818`` (the default): at most 50 % of the static tipping load at full
@@ -251,6 +261,8 @@ class Task(Part):
     """terminal point x from the pile's toe, m."""
     terminal_height_m: Positive
     """terminal point height above the ground, m."""
+    target_cycle_time_s: Positive
+    """the nominal world's bar on the mean cycle time, s (the stress suite's nominal case: a scoop no slower)."""
 
 
 class Machine(Part):
@@ -271,6 +283,18 @@ class Machine(Part):
     sensors: list[Sensor] = Field(min_length=1)
     control: Control
     task: Task
+    scene: dict[str, Any] = Field(default_factory=dict)
+    """scene settings that differ for this machine from the schema's defaults (the paper's world, sized for the
+    Komodo), as dotted config keys (``pile.radius_m: 0.024``); checked against the config schema when loaded."""
+    robot_preset: dict[str, list[Real]] = Field(default_factory=dict)
+    """ranges of the ``robot`` randomised world that differ for this machine (``randomize`` key names without the
+    section: ``particle_radius_m: [0.0495, 0.0525]``)."""
+    scripted_scoop: dict[str, Real | int] = Field(default_factory=dict)
+    """thresholds of the scripted scoop that differ for this machine (``autoscoop.agents.heuristic.HeuristicParams``
+    field names: ``contact_gap_m``, ``exit_height_margin_m``, ...)."""
+    default_policy: str | None = None
+    """the machine's trained controller, a ``.safetensors`` actor file relative to the folder (what ``--policy
+    default`` loads on this machine); None: the machine ships none yet."""
 
     _folder: Path | None = PrivateAttr(default=None)
     _digest: str = PrivateAttr(default="")
@@ -294,11 +318,23 @@ class Machine(Part):
         """sha256 of the machine.yaml bytes it was loaded from (empty when built from a dict)."""
         return self._digest
 
+    def located(self, folder: Path, digest: str) -> Machine:
+        """This machine, recorded as read from ``folder`` with ``digest`` the sha256 of its machine.yaml (for
+        :func:`load_machine`)."""
+        self._folder, self._digest = folder, digest
+        return self
+
     def mjcf_path(self) -> Path:
         """The MJCF file, resolved against the machine folder."""
         if self._folder is None:
             raise MachineError(f"machine {self.name}: built without a folder, so mjcf {self.mjcf!r} names no file")
         return (self._folder / self.mjcf).resolve()
+
+    def default_policy_path(self) -> Path | None:
+        """The machine's trained controller file, resolved against the folder (None when it ships none)."""
+        if self.default_policy is None or self._folder is None:
+            return None
+        return (self._folder / self.default_policy).resolve()
 
 
 def polygon_signed_area(points: list[tuple[float, float]]) -> float:
@@ -393,6 +429,34 @@ def load_machine(name_or_dir: str | Path = DEFAULT_MACHINE) -> Machine:
     mjcf = (folder / machine.mjcf).resolve()
     if not mjcf.is_file():
         raise MachineError(f"{path}: mjcf = {machine.mjcf!r}: no such file ({mjcf})")
-    machine._folder = folder
-    machine._digest = hashlib.sha256(text.encode()).hexdigest()
-    return machine
+    return machine.located(folder, hashlib.sha256(text.encode()).hexdigest())
+
+
+def selected_machine() -> str:
+    """The machine this process runs: ``$AUTOSCOOP_MACHINE`` (set by ``--machine``), else the default."""
+    return os.environ.get(MACHINE_ENV) or DEFAULT_MACHINE
+
+
+FILES_BEFORE_MACHINES = DEFAULT_MACHINE
+"""The machine of a policy file that records none: files written before machines were recorded are its."""
+
+
+def machine_record(machine: Machine) -> dict[str, str]:
+    """What a policy file records of the machine it was trained on: its name and machine.yaml's sha256."""
+    return {"machine": machine.name, "machine_sha256": machine.digest}
+
+
+def refuse_other_machine(metadata: dict[str, Any], machine: Machine, source: str) -> None:
+    """Refuse a policy trained on another machine than the one this process runs.
+
+    A file that records no machine is the default machine's (written before machines were recorded). Only the
+    name must agree: a machine.yaml edited since training (another hash) still loads.
+
+    Raises:
+        MachineError: naming the file, its machine and this run's.
+    """
+    recorded = str(metadata.get("machine") or FILES_BEFORE_MACHINES)
+    if recorded != machine.name:
+        raise MachineError(f"{source}: a policy for machine {recorded!r}, but this run's machine is {machine.name!r}: "
+                           f"pass --machine {recorded} to run it on its own machine, or adapt or train one for "
+                           f"{machine.name!r}")

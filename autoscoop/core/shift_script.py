@@ -40,8 +40,9 @@ HOPPER_PHASES = ("to_hopper", "dump", "back_off")
 STATE_TIP_X, STATE_SPEED, STATE_LIFT, STATE_TILT = 1, 6, 7, 8
 """Indices of the tip's x ahead of the chassis centre (m), odometry speed (m/s), lift angle (rad) and tilt angle
 (rad) in the 12-number state."""
-LOADER_FRONT_M = 0.30
-"""How far the loader's body reaches ahead of the chassis centre below its arm (front wheels: 0.17 + 0.127 m), m."""
+LOADER_FRONT_M = math.ceil(100 * (kinematics.MACHINE.wheels.axle_x_m[1] + kinematics.MACHINE.wheels.radius_m)) / 100
+"""How far the loader's body reaches ahead of the chassis centre below its arm: the front wheels' front (front
+axle + wheel radius; the Komodo's 0.17 + 0.127 m) rounded up to the centimetre, m."""
 
 
 @dataclass(frozen=True)

@@ -20,6 +20,8 @@ from typing import Any
 import numpy as np
 
 from autoscoop.agents.onnx_policy import INPUT_NAME, ONNX_FORMAT, OUTPUT_NAME, OnnxPolicy
+from autoscoop.core import kinematics
+from autoscoop.core.machine import machine_record
 from autoscoop.core.safe_files import write_bytes_atomically
 from autoscoop.core.state import ACTION_NAMES, ACTION_SIZE, STATE_NAMES, STATE_SIZE, actor_input_size
 from autoscoop.core.version import __version__
@@ -68,6 +70,7 @@ def export_onnx(actor: Any, path: str | Path, metadata: dict[str, Any] | None = 
                          f"then {history} commands newest first (autoscoop.core.state.ActorInputHistory)"),
                **({"history_steps": str(history)} if history > 1 else {}),
                "output": f"{OUTPUT_NAME}: (batch, {len(ACTION_NAMES)}) in [-1, 1]",
+               **machine_record(kinematics.MACHINE),
                **{str(k): str(v) for k, v in (metadata or {}).items()}}
     del model.metadata_props[:]
     for key, value in entries.items():
@@ -77,13 +80,12 @@ def export_onnx(actor: Any, path: str | Path, metadata: dict[str, Any] | None = 
     return path
 
 
-def random_states(n: int, seed: int = 0, rated_load_kg: float = 7.0) -> np.ndarray:
+def random_states(n: int, seed: int = 0, rated_load_kg: float = kinematics.MACHINE.bucket.rated_load_kg) -> np.ndarray:
     """``n`` random states (n, 12) float32 over the robot's workspace, built by :func:`autoscoop.core.state.build_state`.
 
     Joint angles uniform over their ranges, mass 0-10 kg, 0-1.2 m to the pile, +-0.1 m/s, and the
     changes since the previous step within one step's reach (+-0.05 m/s, +-0.1 rad lift, +-0.25 rad tilt).
     """
-    from autoscoop.core import kinematics  # noqa: PLC0415
     from autoscoop.core.state import Measurements, build_state  # noqa: PLC0415
 
     rng = np.random.default_rng(seed)

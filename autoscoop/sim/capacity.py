@@ -20,8 +20,11 @@ from autoscoop.sim.scene import ScoopSim
 HOLD_LIFT_RAD = kinematics.LIFT_RANGE_RAD[0]
 HOLD_TILT_RAD = kinematics.TILT_RANGE_RAD[0]
 """Carry pose: arm fully raised, bucket fully curled."""
-DROP_HEIGHT_M = 0.10
-"""Height of each drop above the middle of the bucket's mouth, m."""
+BUCKET_LENGTH_M = kinematics.TIP_FROM_TILT_JOINT_M
+DROP_HEIGHT_M = BUCKET_LENGTH_M * (0.10 / 0.215)
+"""Height of each drop above the middle of the bucket's mouth, m (0.10 m on the Komodo's 0.215 m bucket)."""
+DROP_SPREAD_M = BUCKET_LENGTH_M * (0.04 / 0.215)
+"""Largest offset of a drop along the mouth from its middle, m (0.04 m on the Komodo)."""
 SETTLE_PER_DROP_S = 0.75
 
 
@@ -56,7 +59,7 @@ def fill_until_overflow(config: ScoopConfig | None = None, max_particles: int = 
     for i in range(max_particles):
         above = sim.bucket_to_world(np.array([mouth[0], 0.0, mouth[1]]))
         y = rng.uniform(-0.8, 0.8) * kinematics.BUCKET_INNER_HALF_WIDTH_M
-        sim.set_particle(i, above + np.array([rng.uniform(-0.04, 0.04), y, DROP_HEIGHT_M]))
+        sim.set_particle(i, above + np.array([rng.uniform(-DROP_SPREAD_M, DROP_SPREAD_M), y, DROP_HEIGHT_M]))
         mujoco.mj_step(m, d, nstep=int(SETTLE_PER_DROP_S / m.opt.timestep))
         counts.append(int(sim.particles_in_bucket().sum()))
         stale = 0 if counts[-1] > best else stale + 1
@@ -74,13 +77,14 @@ def capacity(counts: list[int]) -> int:
     return max(min(a, b) for a, b in zip(counts, counts[1:]))
 
 
-NOMINAL_RADIUS_M = 0.034
-"""Particle radius of the capacity measurement (``pile.radius_m``'s default), m."""
-CAPACITY_PARTICLES = 25
-"""Particles of :data:`NOMINAL_RADIUS_M` the bucket holds heaped: :func:`capacity` of
-:func:`fill_until_overflow` gave 24, 24 and 26 for seeds 0-2 (mean 24.7); ``tests/test_capacity.py`` keeps it."""
+NOMINAL_RADIUS_M = ScoopConfig().pile.radius_m
+"""Particle radius of the capacity measurement (``pile.radius_m``'s default for this machine), m."""
+CAPACITY_PARTICLES = kinematics.MACHINE.bucket.capacity_particles
+"""Particles of :data:`NOMINAL_RADIUS_M` the bucket holds heaped (the machine's ``bucket.capacity_particles``: for
+the Komodo :func:`capacity` of :func:`fill_until_overflow` gave 24, 24 and 26 for seeds 0-2, mean 24.7);
+``tests/test_capacity.py`` keeps it."""
 CAPACITY_M3 = CAPACITY_PARTICLES * 4.0 / 3.0 * math.pi * NOMINAL_RADIUS_M**3
-"""The bucket's heaped capacity as the solid volume of the particles it holds, m^3 (about 4.1 L)."""
+"""The bucket's heaped capacity as the solid volume of the particles it holds, m^3 (the Komodo's: about 4.1 L)."""
 
 
 def volumetric_fill(particles: int, radius_m: float) -> float:

@@ -15,10 +15,12 @@ import numpy as np
 
 from autoscoop.core import kinematics
 from autoscoop.core.config import PileConfig, ScoopConfig
+from autoscoop.core.machine import SCENE_FILE
 from autoscoop.sim.pile import pile_layout
 
 WHEELS = ("wheel_fl", "wheel_fr", "wheel_rl", "wheel_rr")
-WHEEL_RADIUS_M = 0.127
+WHEEL_RADIUS_M = kinematics.MACHINE.wheels.radius_m
+"""The machine's wheel radius, m (drive speed = wheel speed * radius)."""
 INSTABILITY_WARNINGS = (
     mujoco.mjtWarning.mjWARN_BADQACC,
     mujoco.mjtWarning.mjWARN_BADQPOS,
@@ -31,13 +33,9 @@ PARTICLE_CONTYPE, PARTICLE_CONAFFINITY = 2, 7
 tested against itself."""
 
 
-SCENE_FILE = "scene.xml"
-"""The scene beside a machine's MJCF that includes it."""
-
-
 def scene_path() -> str:
-    """Path of the default machine's scene (``machines/komodo/scene.xml``: ground, light, camera and solver
-    settings; it includes the machine's MJCF, ``loader.xml``)."""
+    """Path of the machine's scene (``scene.xml`` beside its MJCF, e.g. ``machines/komodo/scene.xml``: ground,
+    light, camera and solver settings; it includes the machine's MJCF)."""
     return str(kinematics.MACHINE.mjcf_path().with_name(SCENE_FILE))
 
 

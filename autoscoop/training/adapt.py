@@ -32,7 +32,9 @@ from autoscoop.agents.critic_files import critic_into_sb3, critic_path_for, read
 from autoscoop.agents.loading import DEFAULT_POLICY, default_policy_path
 from autoscoop.agents.optimizers import HeldAdam
 from autoscoop.agents.policy_files import PolicyFileError, load_actor, sha256_of
+from autoscoop.core import kinematics
 from autoscoop.core.config import ScoopConfig, from_dict, save_yaml
+from autoscoop.core.machine import refuse_other_machine
 from autoscoop.core.safe_files import write_text_atomically
 from autoscoop.core.version import __version__, dependency_versions
 from autoscoop.training.checkpoints import (
@@ -44,6 +46,7 @@ from autoscoop.training.checkpoints import (
     lock_run_dir,
     read_run_json,
     read_run_yaml,
+    refuse_run_of_other_machine,
     restore_to_checkpoint,
     write_run_json,
 )
@@ -114,6 +117,7 @@ def adapt_source(policy: str) -> AdaptSource:
 
     Raises:
         PolicyFileError: no critic beside the actor, a critic of another actor, or files that do not load.
+        MachineError: a policy trained on another machine than this process's.
         ValueError: a policy of a kind that has no critic (``heuristic``, ONNX, a zip) or that does not exist.
     """
     path = Path(policy)
@@ -132,7 +136,8 @@ def adapt_source(policy: str) -> AdaptSource:
         raise PolicyFileError(f"--policy {policy}: no critic beside its actor (expected {critic}); adapt fine-tunes "
                               "the actor together with the critic that trained it. `autoscoop train` writes "
                               f"{CRITIC_FILE} for every run of an off-policy algorithm")
-    load_actor(actor)
+    _, actor_meta = load_actor(actor)
+    refuse_other_machine(actor_meta, kinematics.MACHINE, f"--policy {policy}")
     meta = read_critic_sidecar(critic)
     belongs = {sha256_of(actor)} | ({sha256_of(path / "last.safetensors")} if (path / "last.safetensors").is_file() else set())
     if meta["actor_sha256"] not in belongs:
@@ -261,6 +266,7 @@ def resume_adapt(run_dir: Path, progress: bool = True) -> Path:
     read_run_json(run_dir)
     with lock_run_dir(run_dir):
         info = read_run_json(run_dir)
+        refuse_run_of_other_machine(run_dir, info)
         if info.get("recipe") != ADAPT_RECIPE:
             raise ValueError(f"{run_dir} is not an adapt run; continue it with autoscoop train --resume {run_dir}")
         if info.get("status") == "finished":

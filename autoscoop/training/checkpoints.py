@@ -29,6 +29,8 @@ from autoscoop.agents.policy_files import (
     save_actor,
     sha256_of,
 )
+from autoscoop.core import kinematics
+from autoscoop.core.machine import machine_record, refuse_other_machine
 from autoscoop.core.safe_files import quote, read_json, read_yaml, write_json_atomically, write_text_atomically
 from autoscoop.core.version import __version__
 from autoscoop.training.model_state import BUFFER_FILE, TENSORS_FILE, load_model_state, save_model_state
@@ -305,8 +307,18 @@ def keep_snapshot(run_dir: Path, episode: int, record: dict[str, Any]) -> None:
 
 
 def write_run_json(run_dir: Path, info: dict[str, Any]) -> None:
-    """Replace ``run.json`` atomically (a crash leaves the old one or the new one, never half of one)."""
-    write_json_atomically(run_dir / "run.json", info)
+    """Replace ``run.json`` atomically (a crash leaves the old one or the new one, never half of one); it records
+    the machine of the run (name and machine.yaml's sha256) unless ``info`` already does."""
+    write_json_atomically(run_dir / "run.json", {**machine_record(kinematics.MACHINE), **info})
+
+
+def refuse_run_of_other_machine(run_dir: Path, info: dict[str, Any]) -> None:
+    """Refuse to continue or start from a run trained on another machine than this process's.
+
+    Raises:
+        MachineError: naming the run's machine and this one's.
+    """
+    refuse_other_machine(info, kinematics.MACHINE, f"run {run_dir}")
 
 
 def read_run_yaml(run_dir: Path, name: str) -> Any:

@@ -58,6 +58,7 @@ from autoscoop.training.checkpoints import (
     lock_run_dir,
     read_run_json,
     read_run_yaml,
+    refuse_run_of_other_machine,
     remove_checkpoints,
     restore_to_checkpoint,
     save_safe_actor,
@@ -219,6 +220,7 @@ def _continue(run_dir: Path, progress: bool, on_evaluation: Callable[[Evaluation
     """:func:`resume` under the run directory's lock (``run.json`` is read again: the last holder may have
     finished the run)."""
     info = read_run_json(run_dir)
+    refuse_run_of_other_machine(run_dir, info)
     if info.get("status") == "finished":
         raise ValueError(f"{run_dir} already finished its {info['episodes']} episodes")
     missing = [str(run_dir / name) for name in ("config.yaml", "hyperparams.yaml") if not (run_dir / name).is_file()]
