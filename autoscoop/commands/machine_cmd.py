@@ -179,11 +179,14 @@ def run_new(args: argparse.Namespace) -> int:
     return 0
 
 
-SCALED_UNITS = {"m": 1.0, "kg": 3.0}
+SCALED_UNITS = {"m": 1.0, "kg": 3.0, "s": 0.5}
 """Scene settings that follow the machine's size, by unit: lengths x S, masses x S^3 (the pile's particles scale
-with the bucket, so a full bucket holds as many of them; sensor noise and angles stay)."""
-FROM_MACHINE_KEYS = {"reward.terminal_dx_m", "reward.terminal_z_m", "reward.rated_load_kg"}
-"""Scene settings whose default is a field of machine.yaml (scaled there)."""
+with the bucket, so a full bucket holds as many of them), the task's time limits x sqrt(S) (the episode's, the
+shift's phases); sensor noise, angles and friction stay."""
+FROM_MACHINE_KEYS = {"reward.terminal_dx_m", "reward.terminal_z_m", "reward.rated_load_kg", "env.control_period_s",
+                     "env.timestep_s", "pile.settle_s", "sensor.delay_s"}
+"""Scene settings not scaled here: those whose default is a field of machine.yaml (scaled there), the pile's
+settling time (the simulator's, not the task's) and the sensor link's delay (the link's, not the machine's)."""
 SCALED_PRESET = {"particle_mass_kg": 3.0, "particle_radius_m": 1.0, "start_gap_m": 1.0}
 """Ranges of the robot preset that follow the machine's size, with their power of S."""
 
