@@ -113,6 +113,8 @@ BAD = {
     "unreachable terminal point": (setting("task.terminal_height_m", 0.6), "task.terminal_height_m"),
     "tips at rated load (SAE rating)": (_tips_without_the_paper_basis, "bucket.rated_load_kg"),
     "tips over at rated load": (setting("bucket.rated_load_kg", 12.0), "bucket.rated_load_kg"),
+    "bucket starts in the ground": (setting("scene", {"robot.start_lift_rad": 0.32}), "scene: robot.start_lift_rad"),
+    "capacity far from the measured": (setting("bucket.capacity_particles", 40), "bucket.capacity_particles"),
     # units
     "lengths in mm": (setting("units.length", "mm"), "units.length"),
     "angles in degrees": (setting("units.angle", "deg"), "units.angle"),
@@ -208,6 +210,11 @@ def test_a_scaled_machine_passes_check(scale, tmp_path, capsys):
     assert small.joints.lift.range_rad == KOMODO.joints.lift.range_rad
     # the same shape: the tipping share does not change with scale
     assert "rated load 77 % of it" in text
+    # its own model name, its capacity as measured (particles settle their own way), a licence to replace
+    assert '<mujoco model="small_loader">' in (out / "loader.xml").read_text()
+    assert abs(small.bucket.capacity_particles - float(text.split("(mean ")[1].split(")")[0])) <= 0.5
+    assert "komodo's licence" in (out / "LICENSE").read_text()
+    assert small.licence.startswith("as komodo's until you state yours")
 
 
 def test_new_refuses_a_folder_that_holds_a_machine(tmp_path, capsys):
@@ -216,3 +223,25 @@ def test_new_refuses_a_folder_that_holds_a_machine(tmp_path, capsys):
     assert main(["machine", "new", "other", "--out", str(out)]) == 2
     assert "already holds" in capsys.readouterr().err
     assert (out / MACHINE_FILE).read_text() == before
+
+
+def _distinctive_numbers(node) -> set[str]:
+    """The floats of a machine.yaml with three or more significant digits, as Python writes them."""
+    if isinstance(node, dict):
+        return set().union(*(_distinctive_numbers(v) for v in node.values())) if node else set()
+    if isinstance(node, list):
+        return set().union(*(_distinctive_numbers(v) for v in node)) if node else set()
+    if isinstance(node, float) and len(repr(abs(node)).replace(".", "").strip("0")) >= 3:
+        return {repr(abs(node))}
+    return set()
+
+
+def test_no_module_outside_the_machines_names_a_komodo_number():
+    import re
+
+    numbers = _distinctive_numbers(KOMODO_DATA)
+    assert {"0.215", "0.631", "1.65"} <= numbers  # the bucket's length, the arm's, its mass
+    package = Path(kinematics.__file__).resolve().parents[1]
+    named = [f"{path.relative_to(package)}: {number}" for path in package.rglob("*.py")
+             for number in numbers if re.search(rf"(?<![\d.]){re.escape(number)}(?!\d)", path.read_text())]
+    assert named == []

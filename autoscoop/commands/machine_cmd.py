@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import subprocess
 import sys
 import tempfile
@@ -25,6 +26,7 @@ from autoscoop.core import machine_checks
 from autoscoop.core.config import ROBOT_PRESET, ScoopConfig
 from autoscoop.core.machine import (
     DEFAULT_MACHINE,
+    MACHINE_ENV,
     MACHINE_FILE,
     MAX_MACHINE_BYTES,
     SCENE_FILE,
@@ -40,6 +42,8 @@ from autoscoop.sim import machine_model
 
 MJCF_FILE = "loader.xml"
 """Name of the MJCF that ``new`` writes into the new folder."""
+LICENSE_FILE = "LICENSE"
+"""The licence of a machine folder's numbers and MJCF, beside its machine.yaml."""
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -70,6 +74,7 @@ def check_machine(machine: Machine) -> tuple[list[str], list[str]]:
     cap = machine_checks.capacity(machine)
     top = machine_checks.reach(machine)
     tip = machine_checks.tipping(machine)
+    start = machine_checks.start_pose(machine)
     rated = machine.bucket.rated_load_kg
     sae_kg = machine_checks.RATED_SHARE_OF_TIPPING_LOAD * tip.tipping_load_kg
     lines = [
@@ -84,6 +89,8 @@ def check_machine(machine: Machine) -> tuple[list[str], list[str]]:
         f"basis {machine.bucket.rated_load_basis})",
         f"reach              cutting edge up to {top.tip_height_m:.3f} m (lift {top.lift_rad:.3f}, tilt "
         f"{top.tilt_rad:.3f} rad); terminal point {machine.task.terminal_height_m:g} m high",
+        f"start pose         cutting edge {start.tip_height_m:.3f} m, bucket floor {start.lowest_height_m:.3f} m above "
+        f"the ground (scene robot.start_lift_rad {start.lift_rad:g}, start_tilt_rad {start.tilt_rad:g})",
         f"tipping            static tipping load at full reach {tip.tipping_load_kg:.2f} kg (load centre "
         f"x {tip.load_centre_x_m:.3f} m, lift {tip.lift_rad:.3f} rad); rated load "
         f"{100 * tip.rated_share:.0f} % of it; SAE J818 / ISO 14397-1 rating (50 %) {sae_kg:.2f} kg",
@@ -102,18 +109,60 @@ def run_check(args: argparse.Namespace) -> int:
     source = machine.folder / MACHINE_FILE if machine.folder else machine.name
     for problem in problems:
         print(f"autoscoop machine check: {source}: {problem}", file=sys.stderr)
-    if not problems:
-        line, problem = scripted_scoop(machine)
+    for simulated in (measured_capacity, scripted_scoop):
+        if problems:
+            break
+        line, problem = simulated(machine)
         if line:
             print(line)
-        problems += [problem] if problem else []
-        for item in [problem] if problem else []:
-            print(f"autoscoop machine check: {source}: {item}", file=sys.stderr)
+        if problem:
+            problems.append(problem)
+            print(f"autoscoop machine check: {source}: {problem}", file=sys.stderr)
     if problems:
         print(f"{machine.name}: {len(problems)} problem(s)", file=sys.stderr)
         return 2
     print(f"{machine.name}: passes")
     return 0
+
+
+CAPACITY_TOLERANCE_PARTICLES = 2.0
+"""How far ``bucket.capacity_particles`` may be from the measured mean before check calls it wrong."""
+
+
+def _machine_process(machine: Machine, command: list[str]) -> subprocess.CompletedProcess:
+    """Run ``command`` (a Python module's arguments) in a process of its own that runs ``machine``."""
+    env = {**os.environ, MACHINE_ENV: str(machine.folder)}
+    return subprocess.run([sys.executable, "-m", *command], capture_output=True, text=True, check=False, env=env)
+
+
+def measure_capacity(machine: Machine) -> dict:
+    """Drop particles of the machine's nominal pile into its held bucket (``autoscoop.sim.capacity``, seeds 0-2) in
+    a process of its own: ``{"radius_m", "seeds", "counts", "mean"}``.
+
+    Raises:
+        MachineError: the measurement did not run (its last line of error says why).
+    """
+    done = _machine_process(machine, ["autoscoop.sim.capacity"])
+    if done.returncode != 0:
+        why = (done.stderr.strip().splitlines() or [f"exit {done.returncode}"])[-1]
+        raise MachineError(f"the bucket's capacity could not be measured: {why}")
+    return json.loads(done.stdout.strip().splitlines()[-1])
+
+
+def measured_capacity(machine: Machine) -> tuple[str, str]:
+    """:func:`measure_capacity`: the line to print, and the problem ('' when ``bucket.capacity_particles`` is within
+    :data:`CAPACITY_TOLERANCE_PARTICLES` of the measured mean)."""
+    try:
+        measured = measure_capacity(machine)
+    except MachineError as error:
+        return "", str(error)
+    stated = machine.bucket.capacity_particles
+    line = (f"capacity measured  {measured['counts']} particles of {measured['radius_m']:g} m on seeds "
+            f"{measured['seeds'][0]}-{measured['seeds'][-1]} (mean {measured['mean']:.1f}); machine.yaml says {stated}")
+    if abs(stated - measured["mean"]) > CAPACITY_TOLERANCE_PARTICLES:
+        return line, (f"bucket.capacity_particles = {stated}: the bucket holds {measured['mean']:.1f} particles heaped "
+                      f"(measured {measured['counts']}); set it to {round(measured['mean'])}")
+    return line, ""
 
 
 SCOOP_CHECK_EPISODES = 3
@@ -126,9 +175,8 @@ def scripted_scoop(machine: Machine) -> tuple[str, str]:
     The machine's ``scene``, ``robot_preset`` and ``scripted_scoop`` sections are checked there too."""
     with tempfile.TemporaryDirectory(prefix="autoscoop-machine-check-") as tmp:
         summary = Path(tmp) / "scoop.json"
-        command = [sys.executable, "-m", "autoscoop.cli", "eval", "--machine", str(machine.folder), "--policy",
-                   "heuristic", "--episodes", str(SCOOP_CHECK_EPISODES), "--json", str(summary), "--allow-empty"]
-        done = subprocess.run(command, capture_output=True, text=True, check=False)
+        done = _machine_process(machine, ["autoscoop.cli", "eval", "--policy", "heuristic", "--episodes",
+                                          str(SCOOP_CHECK_EPISODES), "--json", str(summary), "--allow-empty"])
         if done.returncode != 0 or not summary.is_file():
             why = (done.stderr.strip().splitlines() or [f"exit {done.returncode}"])[-1]
             return "", f"the scripted scoop did not run: {why}"
@@ -152,17 +200,18 @@ def run_new(args: argparse.Namespace) -> int:
                       f"machine file {source_folder / MACHINE_FILE}")
     scaled = scale_machine_data(data, args.scale)
     scaled.update(name=args.name, mjcf=MJCF_FILE,
-                  description=f"{base.name} scaled by {args.scale:g} (Froude scaling); describe your machine here")
+                  description=f"{base.name} scaled by {args.scale:g} (Froude scaling); describe your machine here",
+                  licence=f"as {base.name}'s until you state yours: {base.licence}")
     scaled.pop("default_policy", None)  # a controller belongs to the machine it was trained on
     scaled["task"]["target_cycle_time_s"] = float(format(base.task.target_cycle_time_s * args.scale ** 0.5, ".6g"))
     scaled.update(scaled_world(base, args.scale))
     machine_from_dict(scaled, f"the new {MACHINE_FILE}")  # the scaled numbers must still be a machine
     mjcf = scale_mjcf(read_text_bounded(base.mjcf_path(), MAX_MACHINE_BYTES * 8, "MJCF"), args.scale,
                       f"{args.name}: {base.name}'s MJCF scaled by {args.scale:g} (Froude scaling) by autoscoop "
-                      "machine new; machine.yaml holds the numbers")
-    yaml_text = (f"# {args.name}: {base.name} scaled by {args.scale:g} (lengths x S, masses x S^3, torques x S^4, "
-                 "times x sqrt(S)).\n# Field by field: docs/machines.md. Replace the numbers with your machine's "
-                 "and say where each came from in README.md.\n" + _dump(scaled))
+                      "machine new; machine.yaml holds the numbers", model=f"{args.name}_loader")
+    header = (f"# {args.name}: {base.name} scaled by {args.scale:g} (lengths x S, masses x S^3, torques x S^4, "
+              "times x sqrt(S)).\n# Field by field: docs/machines.md. Replace the numbers with your machine's "
+              "and say where each came from in README.md.\n")
     readme = (f"# {args.name}: where each number came from\n\n"
               f"Written by `autoscoop machine new {args.name} --like {base.name} --scale {args.scale:g}`: every "
               f"number is {base.name}'s (see its README) scaled by Froude scaling with S = {args.scale:g}: lengths "
@@ -173,10 +222,28 @@ def run_new(args: argparse.Namespace) -> int:
     write_text_atomically(out / MJCF_FILE, mjcf)
     write_text_atomically(out / SCENE_FILE, scene_including(base, MJCF_FILE))
     write_text_atomically(out / "README.md", readme)
-    write_text_atomically(out / MACHINE_FILE, yaml_text)  # last: a folder with a machine.yaml is complete
-    print(f"wrote {out / MACHINE_FILE}, {out / MJCF_FILE}, {out / SCENE_FILE}, {out / 'README.md'}; check it with "
-          f"`autoscoop machine check {out}`")
+    write_text_atomically(out / LICENSE_FILE, licence_text(base, args.name))
+    write_text_atomically(out / MACHINE_FILE, header + _dump(scaled))  # last: a folder with a machine.yaml is complete
+    print(f"wrote {out / MACHINE_FILE}, {out / MJCF_FILE}, {out / SCENE_FILE}, {out / 'README.md'}, "
+          f"{out / LICENSE_FILE}")
+    # the bucket's capacity in particles does not follow from scaling alone: the particles settle their own way
+    measured = measure_capacity(load_machine(out))
+    scaled["bucket"]["capacity_particles"] = round(measured["mean"])
+    write_text_atomically(out / MACHINE_FILE, header + _dump(scaled))
+    print(f"bucket.capacity_particles {round(measured['mean'])}: measured {measured['counts']} particles of "
+          f"{measured['radius_m']:g} m on seeds {measured['seeds'][0]}-{measured['seeds'][-1]}")
+    print(f"check it with `autoscoop machine check {out}`")
     return 0
+
+
+def licence_text(base: Machine, name: str) -> str:
+    """The new folder's LICENSE: the base machine's, whose numbers it starts from, until its owner states theirs."""
+    base_licence = base.folder / LICENSE_FILE if base.folder else None
+    inherited = (read_text_bounded(base_licence, MAX_MACHINE_BYTES, "licence").strip()
+                 if base_licence and base_licence.is_file() else base.licence)
+    return (f"{name} starts from {base.name}'s numbers and MJCF (scaled), under {base.name}'s licence, quoted below.\n"
+            "Replace this file with your machine's licence once its numbers are your own, and say so in machine.yaml's "
+            "`licence`.\n\n" + inherited + "\n")
 
 
 SCALED_UNITS = {"m": 1.0, "kg": 3.0, "s": 0.5}

@@ -11,6 +11,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from autoscoop.core.config import RobotConfig
 from autoscoop.core.kinematics import pitch
 from autoscoop.core.machine import Machine, polygon_signed_area
 
@@ -112,6 +113,28 @@ def reach(machine: Machine) -> Reach:
     return Reach(float(tip[..., 1][i]), float(tip[..., 0][i]), float(lift[i]), float(tilt[i]))
 
 
+@dataclass(frozen=True)
+class StartPose:
+    """The bucket at the start of an episode: the scene's ``robot.start_lift_rad`` and ``robot.start_tilt_rad``."""
+
+    lift_rad: float
+    tilt_rad: float
+    tip_height_m: float
+    """the cutting edge above the ground, m (negative: under it)."""
+    lowest_height_m: float
+    """the bucket outline's lowest point above the ground, m."""
+
+
+def start_pose(machine: Machine) -> StartPose:
+    """Where the bucket starts: the machine's ``scene`` start angles, else the config schema's defaults."""
+    fields = RobotConfig.model_fields
+    lift = float(machine.scene.get("robot.start_lift_rad", fields["start_lift_rad"].default))
+    tilt = float(machine.scene.get("robot.start_tilt_rad", fields["start_tilt_rad"].default))
+    tip = bucket_point(machine, lift, tilt, np.array([machine.bucket.tip_from_tilt_joint_m, 0.0]))
+    outline = bucket_point(machine, lift, tilt, np.asarray(machine.bucket.inside_polygon_m, dtype=float))
+    return StartPose(lift, tilt, float(tip[1]), float(outline[:, 1].min()))
+
+
 def robot_mass_kg(machine: Machine) -> float:
     """Chassis, four wheels, arm base, arm and bucket, kg."""
     return (machine.chassis.mass_kg + 4 * machine.wheels.mass_kg + machine.arm.base_mass_kg
@@ -171,6 +194,13 @@ def problems(machine: Machine) -> list[str]:
     elif top.tip_x_m <= machine.chassis.size_m[0] / 2.0:
         out.append(f"task.terminal_height_m = {machine.task.terminal_height_m}: the cutting edge is highest at "
                    f"x = {top.tip_x_m:.3f} m, not ahead of the chassis front ({machine.chassis.size_m[0] / 2:.3f} m)")
+    start = start_pose(machine)
+    if start.tip_height_m < 0.0 or start.lowest_height_m < 0.0:
+        where = "cutting edge" if start.tip_height_m < 0.0 else "bucket floor"
+        height = start.tip_height_m if start.tip_height_m < 0.0 else start.lowest_height_m
+        out.append(f"scene: robot.start_lift_rad = {start.lift_rad:g}: the bucket starts in the ground (its {where} "
+                   f"{-height:.3f} m below it at tilt {start.tilt_rad:g} rad); set the scene's robot.start_lift_rad to "
+                   "a lift that holds the level bucket just off the ground (a smaller lift raises it)")
     tip = tipping(machine)
     if tip.tipping_load_kg <= 0.0:
         out.append(f"chassis.com_m = {list(machine.chassis.com_m)}: the machine tips forward over its front axle "

@@ -56,8 +56,9 @@ def scale_machine_data(data: dict[str, Any], scale: float) -> dict[str, Any]:
     return walk(data)
 
 
-def scale_mjcf(xml_text: str, scale: float, header: str) -> str:
-    """An MJCF with every dimension scaled by ``scale``; comments dropped, ``header`` put first as one.
+def scale_mjcf(xml_text: str, scale: float, header: str, model: str | None = None) -> str:
+    """An MJCF with every dimension scaled by ``scale``; comments dropped, ``header`` put first as one;
+    ``model``: the root's new ``model`` name (``None``: kept).
 
     Raises:
         ValueError: the text is not XML.
@@ -78,5 +79,7 @@ def scale_mjcf(xml_text: str, scale: float, header: str) -> str:
             except ValueError:
                 continue
             element.set(name, " ".join(format(v * scale**exponent, ".12g") for v in numbers))
+    if model is not None:
+        root.set("model", model)
     ET.indent(root, space="  ")
     return f"<!-- {header} -->\n" + ET.tostring(root, encoding="unicode") + "\n"

@@ -42,7 +42,7 @@ STATE_TIP_X, STATE_SPEED, STATE_LIFT, STATE_TILT = 1, 6, 7, 8
 (rad) in the 12-number state."""
 LOADER_FRONT_M = math.ceil(100 * (kinematics.MACHINE.wheels.axle_x_m[1] + kinematics.MACHINE.wheels.radius_m)) / 100
 """How far the loader's body reaches ahead of the chassis centre below its arm: the front wheels' front (front
-axle + wheel radius; the Komodo's 0.17 + 0.127 m) rounded up to the centimetre, m."""
+axle + wheel radius, the machine's) rounded up to the centimetre, m."""
 
 
 @dataclass(frozen=True)

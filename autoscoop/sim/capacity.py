@@ -8,7 +8,10 @@ The bucket is full when several drops in a row add nothing.
 
 from __future__ import annotations
 
+import argparse
+import json
 import math
+import sys
 
 import mujoco
 import numpy as np
@@ -21,10 +24,12 @@ HOLD_LIFT_RAD = kinematics.LIFT_RANGE_RAD[0]
 HOLD_TILT_RAD = kinematics.TILT_RANGE_RAD[0]
 """Carry pose: arm fully raised, bucket fully curled."""
 BUCKET_LENGTH_M = kinematics.TIP_FROM_TILT_JOINT_M
-DROP_HEIGHT_M = BUCKET_LENGTH_M * (0.10 / 0.215)
-"""Height of each drop above the middle of the bucket's mouth, m (0.10 m on the Komodo's 0.215 m bucket)."""
-DROP_SPREAD_M = BUCKET_LENGTH_M * (0.04 / 0.215)
-"""Largest offset of a drop along the mouth from its middle, m (0.04 m on the Komodo)."""
+DROP_HEIGHT_FRACTION = 20 / 43
+"""Height of each drop above the middle of the bucket's mouth, as a fraction of the bucket's length (about half)."""
+DROP_SPREAD_FRACTION = 8 / 43
+"""Largest offset of a drop along the mouth from its middle, as a fraction of the bucket's length (about a fifth)."""
+DROP_HEIGHT_M = BUCKET_LENGTH_M * DROP_HEIGHT_FRACTION
+DROP_SPREAD_M = BUCKET_LENGTH_M * DROP_SPREAD_FRACTION
 SETTLE_PER_DROP_S = 0.75
 
 
@@ -91,3 +96,28 @@ def volumetric_fill(particles: int, radius_m: float) -> float:
     """The particles' solid volume over the bucket's capacity (:data:`CAPACITY_M3`); loaders are rated by
     volume as well as by mass (light earth fills a bucket by volume before it reaches the rated mass)."""
     return particles * 4.0 / 3.0 * math.pi * radius_m**3 / CAPACITY_M3
+
+
+MEASURE_SEEDS = (0, 1, 2)
+"""Seeds of the drops that measure ``bucket.capacity_particles`` (``autoscoop machine check``)."""
+
+
+def measure_capacity(seeds: tuple[int, ...] = MEASURE_SEEDS) -> dict[str, object]:
+    """:func:`capacity` of :func:`fill_until_overflow` on each seed, with the nominal pile's particles of the
+    process's machine: ``{"radius_m", "seeds", "counts", "mean"}``."""
+    counts = [capacity(fill_until_overflow(seed=seed)) for seed in seeds]
+    return {"radius_m": NOMINAL_RADIUS_M, "seeds": list(seeds), "counts": counts, "mean": sum(counts) / len(counts)}
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Print :func:`measure_capacity` as JSON for the process's machine (``$AUTOSCOOP_MACHINE``)."""
+    parser = argparse.ArgumentParser(description="measure the bucket's heaped capacity in particles of the "
+                                                 "machine's nominal pile ($AUTOSCOOP_MACHINE)")
+    parser.add_argument("--seeds", type=int, nargs="+", default=list(MEASURE_SEEDS))
+    args = parser.parse_args(argv)
+    print(json.dumps(measure_capacity(tuple(args.seeds))))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
