@@ -179,3 +179,21 @@ def test_energy_cost_charges_the_periods_actuator_work_and_is_off_by_default():
             scoop_reward(0.3, 0.5, True, 0.5, config, actuator_work_j=bad)
     with pytest.raises(ConfigError, match="c_energy"):
         RewardConfig.from_dict({"c_energy": -1.0})
+
+
+def test_success_bonus_is_paid_on_reaching_loaded_by_mass_or_volume_and_is_off_by_default():
+    config = RewardConfig(c_success=20.0)
+    _, loaded = scoop_reward(0.3, 0.05, True, 0.5, config, min_fill=0.5)  # at the terminal point, w at the line
+    assert loaded["reward_success"] == 20.0
+    _, by_volume = scoop_reward(0.3, 0.05, True, 0.3, config, volumetric_fill=0.55, min_fill=0.5)
+    assert by_volume["reward_success"] == 20.0
+    _, short = scoop_reward(0.3, 0.05, True, 0.49, config, volumetric_fill=0.45, min_fill=0.5)
+    assert short["reward_success"] == 0.0
+    _, far = scoop_reward(0.3, 0.5, True, 0.9, config, min_fill=0.5)  # loaded, not yet at the terminal point
+    assert far["reward_success"] == 0.0
+    reward, terms = scoop_reward(0.3, 0.05, True, 0.8, config, min_fill=0.5)
+    assert reward == pytest.approx(sum(terms.values()))
+    with pytest.raises(ValueError, match="min_fill"):
+        scoop_reward(0.3, 0.05, True, 0.8, config)
+    _, paper = scoop_reward(0.3, 0.05, True, 0.8, RewardConfig())
+    assert "reward_success" not in paper

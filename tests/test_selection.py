@@ -104,3 +104,21 @@ def test_a_recipe_with_selection_validates_its_snapshots_and_a_resume_finishes_t
     assert json.loads((out / "selection.json").read_text())["selected_episode"] == chosen
     assert (out / "policy.safetensors").read_bytes() == snapshot.read_bytes()
     assert main(["train", "--resume", str(out), "--no-progress"]) == 2  # now finished and chosen: nothing to do
+
+
+def test_ground_lost_counts_beyond_the_tolerance_where_the_start_held_and_weighs_as_a_shortfall_does():
+    from autoscoop.evaluation.selection import RankedForTarget, regression_from
+
+    start = [row("heavy", success_rate=0.80), row("light"), row("angle_25", volumetric_fill_mean=0.69)]
+    # heavy: the start fails it, so no ground there; light: 0.02 lower, within the 0.03; angle_25: 0.05 lower
+    tuned = [row("heavy", success_rate=0.70), row("light", volumetric_fill_mean=0.68),
+             row("angle_25", volumetric_fill_mean=0.64)]
+    assert regression_from(start, start) == 0.0
+    assert regression_from(tuned, start) == pytest.approx(0.02)
+    # a start that fails its target world by 0.45 in success ranks below a candidate that passes it and lost
+    # 0.02 of fill in one case: the two are in one unit
+    target = next(c for c in CASES if c.name == "light")
+    kept = RankedForTarget("episode 275", None, [StressRow(target, row("light").stats), *tuned],
+                           regression=regression_from(tuned, start))
+    stayed = RankedForTarget("start", None, [StressRow(target, row("light", success_rate=0.45).stats), *start])
+    assert kept.score < stayed.score

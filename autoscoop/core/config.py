@@ -233,7 +233,7 @@ class RobotConfig(ConfigModel):
 
     section = "robot"
     start_gap_m: float = setting(0.10, "m", "gap between the bucket tip and the pile's toe at the start", 0.0, 0.6)
-    start_lift_rad: float = setting(0.23, "rad", "lift angle at the start (0.23: bucket floor level, just off the ground)",
+    start_lift_rad: float = setting(0.23, "rad", "lift angle at the start: a larger one lowers the arm (the default holds the Komodo's level bucket just off the ground; a machine's scene sets its own, and `machine check` prints where the bucket starts)",
                                     *kinematics.LIFT_RANGE_RAD)
     start_tilt_rad: float = setting(0.0, "rad", "tilt angle at the start", *kinematics.TILT_RANGE_RAD)
     start_gap_jitter_m: float = setting(0.01, "m", "largest random change of the start gap in each episode", 0.0, 0.1)
@@ -311,6 +311,9 @@ class RewardConfig(ConfigModel):
     c_energy: float = setting(0.0, "1/J", "each control period costs c_energy per joule of the actuators' positive "
                               "mechanical work in it (wheels, lift and tilt; what a shift reports as energy per "
                               "tonne; 0: off, the paper's reward)", 0.0, 10.0)
+    c_success: float = setting(0.0, "-", "paid once on reaching the terminal point loaded, a success as "
+                               "scoop.min_fill defines it (the bonus c_w * w grows with the load but has no step "
+                               "where a scoop starts to count; 0: off, the paper's reward)", 0.0, 1000.0)
     c_time: float = setting(0.0, "-", "each control period costs c_time (the progress term pays up to 1 a "
                             "period, so hovering short of the terminal point pays nearly as much as reaching it "
                             "late; c_time 1 makes every period cost; 0: off, the paper's reward)", 0.0, 10.0)

@@ -34,6 +34,10 @@ the terminal point.
 ``reward.c_energy`` > 0 costs c_energy * E_t at every step, E_t the actuators' positive mechanical work over the
 control period, J (force times velocity at the wheel motors and the lift and tilt servos, braking counted zero;
 the term ``reward_energy``): a scoop that winds up, or flips its servos, spends energy a shift pays for per tonne.
+``reward.c_success`` > 0 pays c_success once, on reaching the terminal point loaded as a success is defined
+(max(w_t, v_t) >= ``scoop.min_fill``; the term ``reward_success``): the bonus c_w * w_t pays a scoop just short
+of a success almost as much as one just past it, so a controller whose scoops scatter about that line has no
+reason to move them past it.
 ``reward.c_time`` > 0 costs c_time at every step (the term ``reward_time``): P_t pays up to 1 a step, so
 with the time limit bootstrapped, lingering short of the terminal point (shaking particles out, say) and
 reaching it later pays about as much as reaching it now; with c_time = 1 no step pays, and the mass
@@ -66,7 +70,8 @@ def scoop_reward(tip_to_pile_m: float, tip_to_terminal_m: float, penetrating: bo
                  config: RewardConfig, volumetric_fill: float = 0.0,
                  chassis_pitch_rad: float = 0.0, command_change: float = 0.0,
                  approach_height_m: float | None = None,
-                 overload_fill: float | None = None, actuator_work_j: float = 0.0) -> tuple[float, dict[str, float]]:
+                 overload_fill: float | None = None, actuator_work_j: float = 0.0,
+                 min_fill: float | None = None) -> tuple[float, dict[str, float]]:
     """Reward of one step and its terms.
 
     Args:
@@ -83,12 +88,15 @@ def scoop_reward(tip_to_pile_m: float, tip_to_terminal_m: float, penetrating: bo
         overload_fill: ``scoop.overload_fill``, the fill factor above which a load is an overload
             (``c_overload_step`` > 0).
         actuator_work_j: the actuators' positive mechanical work over this control period, J (``c_energy`` > 0).
+        min_fill: ``scoop.min_fill``, the fill (by mass or by volume, whichever is higher) of a success
+            (``c_success`` > 0).
 
     Returns:
         (reward, {"reward_progress": P_t, "reward_mass": c_w * w_t or 0}, with "reward_pitch" where
         ``c_pitch`` > 0, "reward_action_change" where ``c_action_change`` > 0, "reward_approach_height"
         where ``c_approach_height`` > 0, "reward_overload_step" where ``c_overload_step`` > 0, "reward_energy" where
-        ``c_energy`` > 0 and "reward_time" where ``c_time`` > 0); the terms sum to the reward.
+        ``c_energy`` > 0, "reward_success" where ``c_success`` > 0 and "reward_time" where ``c_time`` > 0); the terms
+        sum to the reward.
     """
     distance = tip_to_terminal_m if penetrating else tip_to_pile_m
     progress = 1.0 - math.tanh(distance / config.distance_scale_m) ** 2
@@ -115,6 +123,11 @@ def scoop_reward(tip_to_pile_m: float, tip_to_terminal_m: float, penetrating: bo
         if not math.isfinite(actuator_work_j) or actuator_work_j < 0.0:
             raise ValueError(f"actuator_work_j must be a finite, non-negative number of joules, got {actuator_work_j}")
         terms["reward_energy"] = -config.c_energy * actuator_work_j
+    if config.c_success:
+        if min_fill is None:
+            raise ValueError("reward.c_success needs the fill of a success (scoop.min_fill)")
+        reached = tip_to_terminal_m <= config.epsilon_m
+        terms["reward_success"] = config.c_success if reached and max(w, volumetric_fill) >= min_fill else 0.0
     if config.c_time:
         terms["reward_time"] = -config.c_time
     return float(sum(terms.values())), terms

@@ -237,7 +237,8 @@ class ScoopEnv(gym.Env):
                                      float(np.float32(info["fill_factor"])), cfg.reward, info["volumetric_fill"],
                                      chassis_pitch_rad=pitch, command_change=change,
                                      approach_height_m=approach_height, overload_fill=cfg.scoop.overload_fill,
-                                     actuator_work_j=0.0 if meter is None else meter.positive_work_j)
+                                     actuator_work_j=0.0 if meter is None else meter.positive_work_j,
+                                     min_fill=cfg.scoop.min_fill)
         info.update(terms)
         terminated = info["reached"]  # the scoop ends at the terminal point, loaded or not
         return obs, float(reward), bool(terminated), False, info

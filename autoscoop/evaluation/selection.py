@@ -112,7 +112,9 @@ case that policy holds, before it counts as having lost ground."""
 def regression_from(rows: Sequence[StressRow], reference: Sequence[StressRow],
                     tolerance: float = REGRESSION_TOLERANCE) -> float:
     """How far ``rows`` fall below ``reference`` (the same cases) where the reference holds: per case, the success
-    and the volumetric fill lost beyond ``tolerance``, each in units of 0.01, summed (0: no case lost ground)."""
+    and the volumetric fill lost beyond ``tolerance``, summed, in the units of :func:`threshold_shortfall` (a
+    point of a rate or fill is 0.01), so that a candidate's ground lost and its shortfall weigh alike (0: no case
+    lost ground; a NaN statistic counts as one whole unit)."""
     by_name = {row.case.name: row for row in reference}
     total = 0.0
     for row in rows:
@@ -121,7 +123,7 @@ def regression_from(rows: Sequence[StressRow], reference: Sequence[StressRow],
             continue
         for metric in ("success_rate", "volumetric_fill_mean"):
             lost = float(before.stats[metric]) - float(row.stats[metric]) - tolerance
-            total += max(lost, 0.0) / 0.01 if math.isfinite(lost) else 1.0
+            total += max(lost, 0.0) if math.isfinite(lost) else 1.0
     return total
 
 
