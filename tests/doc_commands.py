@@ -26,6 +26,7 @@ EPISODES_BY_COMMAND = {("train",): 3, ("ros", "sim"): 3, ("ros2", "sim"): 3}
 """train: 3 episodes (no evaluation, no selection); the ROS simulators: 3 scoops, as the README's figures
 over ROS are judged (fill >= 0.65, success >= 0.9)."""
 SCALED = {"--cycles": "2", "--shifts": "1", "--repeats": "1", "--steps": "200", "--check-states": "1000",
+          "--demo-episodes": "2",
           "--trials": "3", "--estop-trials": "2", "--seeds": "0", "--worlds": "heavy"}
 """Other options set to a small value where a command line gives them (``--seeds`` takes one seed for all)."""
 MANY_VALUES = ("--seeds",)
@@ -40,7 +41,7 @@ SETTINGS = {("adapt",): ADAPT_SCALED, ("benchmarks/shift_speed.py",): {"--cycles
                 f"{option} {value}" for option, value in {"--episodes": "2", **ADAPT_SCALED}.items())}}
 """Options set (replaced or added) on one command or script: keyed as :func:`command_key` names it."""
 ADDED = {("adapt",): ["--episodes"], ("eval",): ["--episodes"], ("compare",): ["--episodes"], ("stress",): ["--episodes"],
-         ("train",): ["--episodes"], ("ros", "sim"): ["--episodes"], ("ros2", "sim"): ["--episodes"],
+         ("train",): ["--episodes", "--demo-episodes"], ("ros", "sim"): ["--episodes"], ("ros2", "sim"): ["--episodes"],
          ("shift",): ["--cycles", "--shifts"], ("bench",): ["--repeats", "--episodes"],
          ("bench", "payload"): ["--episodes"], ("export",): ["--check-states"]}
 """Options added (at the scaled value) where a command leaves them at their default; ``bench --n-envs``

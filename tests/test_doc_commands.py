@@ -373,7 +373,8 @@ def test_lines_of_several_commands_are_split_at_the_shell_operators():
 def test_scaling_rules():
     assert scaled(["autoscoop", "eval", "--policy", "default", "--episodes", "100"])[-1] == "2"
     assert scaled(["autoscoop", "eval"]) == ["autoscoop", "eval", "--episodes", "2"]
-    assert scaled(["autoscoop", "train", "--seed", "12"]) == ["autoscoop", "train", "--seed", "12", "--episodes", "3"]
+    assert scaled(["autoscoop", "train", "--seed", "12"]) == ["autoscoop", "train", "--seed", "12", "--episodes", "3",
+                                                             "--demo-episodes", "2"]
     assert scaled(["autoscoop", "train", "--resume", "runs/x"]) == ["autoscoop", "train", "--resume", "runs/x"]
     assert scaled(["autoscoop", "ros2", "sim", "a:=b"]) == ["autoscoop", "ros2", "sim", "--episodes", "3", "a:=b"]
     assert scaled(["autoscoop", "bench", "--n-envs", "2"]) == ["autoscoop", "bench", "--n-envs", "2", "--repeats", "1",
