@@ -149,6 +149,12 @@ def measure_capacity(machine: Machine) -> dict:
     return json.loads(done.stdout.strip().splitlines()[-1])
 
 
+def _drops(measured: dict) -> str:
+    """What a :func:`measure_capacity` measured, in words."""
+    return (f"{measured['counts']} particles of {measured['radius_m']:g} m on seeds {measured['seeds'][0]}-"
+            f"{measured['seeds'][-1]}")
+
+
 def measured_capacity(machine: Machine) -> tuple[str, str]:
     """:func:`measure_capacity`: the line to print, and the problem ('' when ``bucket.capacity_particles`` is within
     :data:`CAPACITY_TOLERANCE_PARTICLES` of the measured mean)."""
@@ -157,8 +163,7 @@ def measured_capacity(machine: Machine) -> tuple[str, str]:
     except MachineError as error:
         return "", str(error)
     stated = machine.bucket.capacity_particles
-    line = (f"capacity measured  {measured['counts']} particles of {measured['radius_m']:g} m on seeds "
-            f"{measured['seeds'][0]}-{measured['seeds'][-1]} (mean {measured['mean']:.1f}); machine.yaml says {stated}")
+    line = f"capacity measured  {_drops(measured)} (mean {measured['mean']:.1f}); machine.yaml says {stated}"
     if abs(stated - measured["mean"]) > CAPACITY_TOLERANCE_PARTICLES:
         return line, (f"bucket.capacity_particles = {stated}: the bucket holds {measured['mean']:.1f} particles heaped "
                       f"(measured {measured['counts']}); set it to {round(measured['mean'])}")
@@ -230,8 +235,7 @@ def run_new(args: argparse.Namespace) -> int:
     measured = measure_capacity(load_machine(out))
     scaled["bucket"]["capacity_particles"] = round(measured["mean"])
     write_text_atomically(out / MACHINE_FILE, header + _dump(scaled))
-    print(f"bucket.capacity_particles {round(measured['mean'])}: measured {measured['counts']} particles of "
-          f"{measured['radius_m']:g} m on seeds {measured['seeds'][0]}-{measured['seeds'][-1]}")
+    print(f"bucket.capacity_particles {round(measured['mean'])}: measured {_drops(measured)}")
     print(f"check it with `autoscoop machine check {out}`")
     return 0
 

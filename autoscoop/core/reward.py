@@ -57,6 +57,12 @@ def is_penetrating(nearest_particle_m: float, config: RewardConfig) -> bool:
     return nearest_particle_m <= config.delta_m
 
 
+def is_success(reached: bool, w: float, volumetric_fill: float, min_fill: float) -> bool:
+    """A scoop's success: the terminal point reached with the fill by mass (w) or by volume, whichever is higher,
+    at least ``scoop.min_fill``."""
+    return bool(reached and max(w, volumetric_fill) >= min_fill)
+
+
 def action_change(previous: Sequence[float], action: Sequence[float]) -> float:
     """u_t: the mean over the action's components of ((a_t - a_t-1) / 2)^2, each clipped to [-1, 1]; 0 to 1."""
     if len(previous) != len(action):
@@ -127,7 +133,7 @@ def scoop_reward(tip_to_pile_m: float, tip_to_terminal_m: float, penetrating: bo
         if min_fill is None:
             raise ValueError("reward.c_success needs the fill of a success (scoop.min_fill)")
         reached = tip_to_terminal_m <= config.epsilon_m
-        terms["reward_success"] = config.c_success if reached and max(w, volumetric_fill) >= min_fill else 0.0
+        terms["reward_success"] = config.c_success if is_success(reached, w, volumetric_fill, min_fill) else 0.0
     if config.c_time:
         terms["reward_time"] = -config.c_time
     return float(sum(terms.values())), terms

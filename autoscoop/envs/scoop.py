@@ -13,7 +13,7 @@ from gymnasium.wrappers import TimeLimit
 
 from autoscoop.core import state as state_mod
 from autoscoop.core.config import RandomizeConfig, ScoopConfig
-from autoscoop.core.reward import action_change, is_penetrating, scoop_reward
+from autoscoop.core.reward import action_change, is_penetrating, is_success, scoop_reward
 from autoscoop.core.sensing import RawReadings, SensorNoise, add_noise, delay_steps
 from autoscoop.core.state import CommandLimits, Measurements
 from autoscoop.sim.capacity import volumetric_fill
@@ -351,7 +351,7 @@ class ScoopEnv(gym.Env):
             "volumetric_fill": volumetric,
             "penetrating": is_penetrating(nearest, cfg.reward),
             "reached": bool(reached),
-            "success": bool(reached and max(fill, volumetric) >= cfg.scoop.min_fill),
+            "success": is_success(reached, fill, volumetric, cfg.scoop.min_fill),
             "overloaded": bool(fill > cfg.scoop.overload_fill),
             "spilled": int((self._ever_inside & ~inside).sum()),
             "physics_error": False,
