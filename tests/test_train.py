@@ -144,7 +144,7 @@ def test_resume_continues_steps_and_keeps_the_replay_buffer(tmp_path, monkeypatc
 
 def test_kill_9_loses_at_most_one_checkpoint_interval(tmp_path):
     out = tmp_path / "run"
-    command = [sys.executable, "-m", "autoscoop.cli", "train", "--episodes", "60", "--checkpoint-every", "3",
+    command = [sys.executable, "-m", "autoscoop.cli", "train", "--episodes", "24", "--checkpoint-every", "3",
                "--out", str(out), *FAST]
     process = subprocess.Popen(command, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     deadline = time.time() + 120
@@ -160,7 +160,7 @@ def test_kill_9_loses_at_most_one_checkpoint_interval(tmp_path):
                          capture_output=True, text=True, timeout=300)
     assert run.returncode == 0, run.stderr
     rows = list(csv.DictReader(open(out / "episodes.csv")))
-    assert [int(r["episode"]) for r in rows] == list(range(1, 61))
+    assert [int(r["episode"]) for r in rows] == list(range(1, 25))
 
 
 class _Exploit:

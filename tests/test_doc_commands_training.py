@@ -1,0 +1,12 @@
+"""Every command line of docs/training.md, adapt.md, sweep.md and performance.md runs, scaled down, and does what its text says (tests/doc_command_runner.py,
+whose fixtures tests/conftest.py loads)."""
+
+import pytest
+from doc_command_runner import group_commands, run_doc_command
+
+COMMANDS = group_commands("training")
+
+
+@pytest.mark.parametrize("command", COMMANDS, ids=lambda command: command.id)
+def test_the_doc_command_runs_as_written(command, pages, request):
+    run_doc_command(command, pages, request)
