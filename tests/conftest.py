@@ -1,5 +1,9 @@
 """Shared test set-up."""
 
+import tempfile
+
+import pytest
+
 # Import the package before any test module imports mujoco: on a machine without a display,
 # ``import autoscoop`` points MUJOCO_GL at an off-screen backend, and mujoco reads it only once.
 import autoscoop  # noqa: F401
@@ -19,3 +23,12 @@ def pytest_collection_modifyitems(items):
         return LONGEST_FIRST.index(name) if name in LONGEST_FIRST else len(LONGEST_FIRST)
 
     items.sort(key=rank)  # stable: each file keeps its order
+
+
+@pytest.fixture(autouse=True, scope="session")
+def temporary_files_inside_pytests_folder(tmp_path_factory):
+    """What libraries write to the temporary folder lands in pytest's own, which pytest cleans (a model that
+    learns without a log folder makes Stable-Baselines3 create an empty ``SB3-<date>`` folder there)."""
+    tempfile.tempdir = str(tmp_path_factory.mktemp("tempfile"))
+    yield
+    tempfile.tempdir = None
