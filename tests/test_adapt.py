@@ -127,6 +127,24 @@ def test_a_critic_of_another_actor_is_refused(tmp_path, capsys):
     assert "trained with another actor" in capsys.readouterr().err
 
 
+def test_a_shipped_actor_kept_before_its_runs_last_critic_is_accepted_by_name_only(tmp_path):
+    """A run keeps a snapshot; its critic is the last actor's. Shipped beside each other, the critic's sidecar
+    names the kept actor (``kept_actor_sha256``, as compact's default does); any other actor is still refused."""
+    from autoscoop.training.adapt import adapt_source
+
+    actor = default_policy_path()
+    for suffix in (".safetensors", ".json"):
+        shutil.copy(actor.with_suffix(suffix), tmp_path / f"kept{suffix}")
+        shutil.copy(critic_path_for(actor).with_suffix(suffix), tmp_path / f"kept.critic{suffix}")
+    meta = json.loads((tmp_path / "kept.critic.json").read_text())
+    paired = {**meta, "actor_sha256": "f" * 64, "kept_actor_sha256": sha256_of(actor)}
+    (tmp_path / "kept.critic.json").write_text(json.dumps(paired))
+    assert adapt_source(str(tmp_path / "kept.safetensors")).critic == tmp_path / "kept.critic.safetensors"
+    (tmp_path / "kept.critic.json").write_text(json.dumps({**paired, "kept_actor_sha256": "e" * 64}))
+    with pytest.raises(PolicyFileError, match="trained with another actor"):
+        adapt_source(str(tmp_path / "kept.safetensors"))
+
+
 def test_a_small_adapt_run_keeps_a_validated_snapshot_and_exports_it(tmp_path, capsys):
     run = tmp_path / "run"
     assert main(["adapt", "--out", str(run), *TINY, "--set", "pile.particle_mass_kg=0.4"]) == 0

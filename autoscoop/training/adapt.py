@@ -140,7 +140,9 @@ def adapt_source(policy: str) -> AdaptSource:
     refuse_other_machine(actor_meta, kinematics.MACHINE, f"--policy {policy}")
     meta = read_critic_sidecar(critic)
     belongs = {sha256_of(actor)} | ({sha256_of(path / "last.safetensors")} if (path / "last.safetensors").is_file() else set())
-    if meta["actor_sha256"] not in belongs:
+    # a shipped actor that is its run's kept snapshot, beside the critic of the run's last actor, as a run
+    # directory pairs them: its sidecar names the kept actor (``kept_actor_sha256``)
+    if meta["actor_sha256"] not in belongs and meta.get("kept_actor_sha256") != sha256_of(actor):
         raise PolicyFileError(f"--policy {policy}: the critic {critic} was trained with another actor "
                               f"(SHA-256 {meta['actor_sha256'][:12]}...)")
     return AdaptSource(policy, actor, critic, meta)
