@@ -20,6 +20,7 @@ import contextlib
 import json
 import os
 import select
+import signal
 import socket
 import subprocess
 import sys
@@ -164,7 +165,6 @@ class ForkedProcess:
                 os.kill(self.pid, signum)
 
     def kill(self) -> None:
-        import signal
 
         self.send_signal(signal.SIGKILL)
 
