@@ -165,7 +165,6 @@ class ForkedProcess:
                 os.kill(self.pid, signum)
 
     def kill(self) -> None:
-
         self.send_signal(signal.SIGKILL)
 
 
