@@ -2,6 +2,7 @@
 
 import tempfile
 
+import forked
 import pytest
 
 # Import the package before any test module imports mujoco: on a machine without a display,
@@ -31,4 +32,5 @@ def temporary_files_inside_pytests_folder(tmp_path_factory):
     learns without a log folder makes Stable-Baselines3 create an empty ``SB3-<date>`` folder there)."""
     tempfile.tempdir = str(tmp_path_factory.mktemp("tempfile"))
     yield
+    forked.close()  # the fork server of the tests' command lines (tests/forked.py), if one started
     tempfile.tempdir = None

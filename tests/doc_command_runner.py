@@ -22,6 +22,7 @@ import sys
 import time
 from pathlib import Path
 
+import forked
 import pytest
 from doc_commands import (
     OUTPUT_OPTIONS,
@@ -44,7 +45,6 @@ from doc_commands import (
     shell_line,
     skip_reasons,
 )
-from fork_server import ForkServer
 
 COMMANDS = [command for page in PAGES for command in page_commands(page)]
 REASONS = {page: skip_reasons([c for c in COMMANDS if c.page == page]) for page in PAGES}
@@ -110,18 +110,14 @@ class Page:
         return process.returncode, log.read_text(errors="replace"), argv
 
 
-FORK_SERVER: list[ForkServer] = []
-"""The fork server of this module's commands, while the ``pages`` fixture lives (tests/fork_server.py)."""
-
-
 def start(cmd: list[str], cwd: Path, env: dict[str, str], stdout: Path, stderr: Path):
     """Start ``cmd`` in a session of its own, its output appended to files: ``autoscoop`` lines in a child of the
     fork server (the same process a shell would start, without the seconds of imports), others with Popen."""
     autoscoop = launcher("autoscoop")
-    if FORK_SERVER and cmd[:len(autoscoop)] == autoscoop:
+    if cmd[:len(autoscoop)] == autoscoop:
         stdout.touch()
         stderr.touch()
-        return FORK_SERVER[0].spawn(cmd[len(autoscoop):], cwd, env, stdout, stderr)
+        return forked.server().spawn(cmd[len(autoscoop):], cwd, env, stdout, stderr)
     with stdout.open("ab") as out, stderr.open("ab") as err:
         return subprocess.Popen(cmd, cwd=cwd, env=env, stdout=out, stderr=subprocess.STDOUT if stderr == stdout else err,
                                 start_new_session=True)
@@ -129,7 +125,6 @@ def start(cmd: list[str], cwd: Path, env: dict[str, str], stdout: Path, stderr: 
 
 @pytest.fixture(scope="module")
 def pages(tmp_path_factory):
-    FORK_SERVER.append(ForkServer(tmp_path_factory.mktemp("fork"), base_env()))
     made = {}
     for page in PAGES:
         name = page.replace("/", "_").replace(".", "_")
@@ -138,7 +133,6 @@ def pages(tmp_path_factory):
     for page in made.values():
         if page.node:
             page.stop_node()
-    FORK_SERVER.pop().close()
 
 
 @pytest.fixture(scope="module")

@@ -9,7 +9,8 @@ output files; it runs the command line as ``python -m autoscoop.cli`` would and 
 does (``atexit``, threads joined, output flushed), so what the test sees is what a user's shell would see.
 
 Protocol, one connection per command on a Unix socket: the client sends one JSON line ``{"argv", "cwd", "env",
-"stdout", "stderr"}`` (the two output paths may be the same file); the server answers ``{"pid": N}`` once the
+"stdout", "stderr"}`` (the two output paths may be the same file; with ``"code"`` the child runs that source as
+``python -c CODE ARGV...`` would, instead of the command line); the server answers ``{"pid": N}`` once the
 child runs, then ``{"returncode": C}`` when it ends (C as ``Popen.returncode``: negative for a signal).
 :class:`ForkedProcess` is the client, with the part of ``Popen``'s interface the test uses.
 """
@@ -61,8 +62,12 @@ def _child(request: dict) -> None:
     sys.stdin = open(0, closefd=False)
     sys.stdout.reconfigure(write_through=True)
     sys.stderr.reconfigure(write_through=True)
-    sys.argv = [str(Path(__file__).resolve().parents[1] / "autoscoop" / "cli.py"), *request["argv"]]
-    sys.path[0] = request["cwd"]
+    if request.get("code") is None:
+        sys.argv = [str(Path(__file__).resolve().parents[1] / "autoscoop" / "cli.py"), *request["argv"]]
+        sys.path[0] = request["cwd"]
+    else:
+        sys.argv = ["-c", *request["argv"]]
+        sys.path[0] = ""
 
 
 def _answer(connection: socket.socket, pid: int) -> None:
@@ -113,8 +118,9 @@ class ForkServer:
                                         stdout=subprocess.PIPE, env=env, text=True)
         assert self.process.stdout.readline().strip() == "ready", "the fork server did not start"
 
-    def spawn(self, argv: list[str], cwd: Path, env: dict[str, str], stdout: Path, stderr: Path) -> ForkedProcess:
-        return ForkedProcess(self.path, {"argv": list(argv), "cwd": str(cwd), "env": dict(env),
+    def spawn(self, argv: list[str], cwd: Path, env: dict[str, str], stdout: Path, stderr: Path,
+              code: str | None = None) -> ForkedProcess:
+        return ForkedProcess(self.path, {"argv": list(argv), "cwd": str(cwd), "env": dict(env), "code": code,
                                          "stdout": str(stdout), "stderr": str(stderr)})
 
     def close(self) -> None:
@@ -168,8 +174,12 @@ class ForkedProcess:
         self.send_signal(signal.SIGKILL)
 
 
-if __name__ == "__main__" and serve(sys.argv[1]) is not None:
-    # the forked child: the command line, as ``python -m autoscoop.cli`` runs it (its SystemExit ends the child)
-    import runpy
+if __name__ == "__main__" and (_request := serve(sys.argv[1])) is not None:
+    # the forked child: the command line, as ``python -m autoscoop.cli`` (or ``python -c``) runs it (its
+    # SystemExit ends the child; an exception escaping it prints its traceback and exits 1, as Python does)
+    if _request.get("code") is None:
+        import runpy
 
-    runpy.run_module("autoscoop.cli", run_name="__main__", alter_sys=True)
+        runpy.run_module("autoscoop.cli", run_name="__main__", alter_sys=True)
+    else:
+        exec(compile(_request["code"], "<string>", "exec"), {"__name__": "__main__", "__builtins__": __builtins__})

@@ -9,6 +9,7 @@ import signal
 import subprocess
 import sys
 
+import forked
 import pytest
 import torch
 
@@ -164,11 +165,9 @@ def test_a_small_adapt_run_keeps_a_validated_snapshot_and_exports_it(tmp_path, c
 
 def test_an_adapt_run_killed_mid_way_resumes_to_the_end(tmp_path):
     run = tmp_path / "run"
-    driver = tmp_path / "kill_driver.py"
-    driver.write_text(KILL_DRIVER)
     log = tmp_path / "driver.log"
     with log.open("w") as sink:  # a file, not a pipe: the simulators' workers outlive the killed process
-        killed = subprocess.Popen([sys.executable, str(driver), "5", "adapt", "--out", str(run), *TINY,
+        killed = forked.Popen([sys.executable, "-c", KILL_DRIVER, "5", "adapt", "--out", str(run), *TINY,
                                    "--checkpoint-every", "2"], stdout=sink, stderr=subprocess.STDOUT,
                                   start_new_session=True)
         try:

@@ -1,8 +1,8 @@
 """Bad input fails at once with exit code 2 and a message naming the option, file or key; no traceback."""
 
-import subprocess
 import sys
 
+import forked
 import pytest
 
 from autoscoop.cli import main
@@ -51,8 +51,8 @@ def test_a_folder_as_config_file_is_named(tmp_path, capsys, no_episodes):
 def test_a_yaml_syntax_error_names_the_file_and_line(tmp_path):
     bad = tmp_path / "bad.yaml"
     bad.write_text("pile:\n  angle_deg: 28\n  n_particles: [1, 2\nenv: {}\n")
-    done = subprocess.run([sys.executable, "-m", "autoscoop.cli", "config", "--config", str(bad)],
-                          capture_output=True, text=True, timeout=120)
+    done = forked.run([sys.executable, "-m", "autoscoop.cli", "config", "--config", str(bad)],
+                      capture_output=True, text=True, timeout=120)
     assert done.returncode == 2
     assert str(bad) in done.stderr and "not valid YAML at line 4" in done.stderr
     assert "Traceback" not in done.stderr

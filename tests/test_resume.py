@@ -5,10 +5,10 @@ import csv
 import json
 import pickle
 import signal
-import subprocess
 import sys
 from pathlib import Path
 
+import forked
 import gymnasium as gym
 import numpy as np
 import pytest
@@ -52,10 +52,8 @@ class _Exploit:
 
 def _kill_9_after(episode: int, out: Path, tmp_path: Path) -> None:
     """Train ``RUN`` into ``out`` in another process that kill -9s itself right after ``episode``."""
-    driver = tmp_path / "kill_driver.py"
-    driver.write_text(KILL_DRIVER)
-    done = subprocess.run([sys.executable, str(driver), str(episode), "train", *RUN, "--out", str(out)],
-                          capture_output=True, text=True, timeout=300)
+    done = forked.run([sys.executable, "-c", KILL_DRIVER, str(episode), "train", *RUN, "--out", str(out)],
+                      capture_output=True, text=True, timeout=300)
     assert done.returncode == -signal.SIGKILL, done.stderr[-3000:]
 
 

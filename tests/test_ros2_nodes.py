@@ -14,6 +14,7 @@ import threading
 import time
 from pathlib import Path
 
+import forked
 import pytest
 
 pytest.importorskip("cyclonedds")
@@ -113,8 +114,8 @@ def test_nodes_in_another_domain_are_not_heard():
 
 
 def test_a_bad_domain_is_a_usage_error():
-    run = subprocess.run([sys.executable, "-m", "autoscoop.cli", "ros2", "controller", "--policy", "heuristic"],
-                         env=dict(os.environ, ROS_DOMAIN_ID="999"), capture_output=True, text=True, timeout=60)
+    run = forked.run([sys.executable, "-m", "autoscoop.cli", "ros2", "controller", "--policy", "heuristic"],
+                     env=dict(os.environ, ROS_DOMAIN_ID="999"), capture_output=True, text=True, timeout=60)
     assert run.returncode == 2 and "ROS_DOMAIN_ID" in run.stderr, run.stdout + run.stderr
 
 
@@ -209,13 +210,13 @@ def test_controller_drives_stops_when_silenced_and_obeys_a_latched_estop():
 def test_sim_and_controller_scoop_over_ros2_in_a_namespace_with_remapped_topics(tmp_path):
     remap = "joint_states:=sensors/joints"
     env = dict(os.environ, PYTHONUNBUFFERED="1")
-    controller = subprocess.Popen([sys.executable, "-m", "autoscoop.cli", "ros2", "controller", "--policy",
+    controller = forked.Popen([sys.executable, "-m", "autoscoop.cli", "ros2", "controller", "--policy",
                                    "heuristic", "--records", str(tmp_path / "robot"), "--bag",
                                    str(tmp_path / "controller.mcap"), "__ns:=/e2e", remap],
                                   env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
     out = tmp_path / "ros2_sim.json"
     try:
-        sim = subprocess.run([sys.executable, "-m", "autoscoop.cli", "ros2", "sim", "--episodes", "1", "--json",
+        sim = forked.run([sys.executable, "-m", "autoscoop.cli", "ros2", "sim", "--episodes", "1", "--json",
                               str(out), "--set", "pile.variants=1", "--joint-noise-rad", "0.001", "--wait-s", "60",
                               "--bag", str(tmp_path / "sim.mcap"), "__ns:=/e2e", remap], env=env,
                              capture_output=True, text=True, timeout=120)
@@ -256,7 +257,7 @@ def check_recordings_and_replay(folder):
         assert any(ch.topic == "/e2e/pile_range" and 0 < m.range < 4 for _, ch, _, m in decoded)
 
         out = folder / f"replay_{name}"
-        run = subprocess.run([sys.executable, "-m", "autoscoop.cli", "replay", str(path), "--policy", "heuristic",
+        run = forked.run([sys.executable, "-m", "autoscoop.cli", "replay", str(path), "--policy", "heuristic",
                               "--namespace", "/e2e", "--set", "pile.variants=1", "--robot", str(remapped_config(folder)),
                               "--out", str(out), "--json", str(out / "summary.json")],
                              capture_output=True, text=True, timeout=120)
@@ -285,14 +286,14 @@ def test_the_readme_pair_scoops_in_raw_readings_refuses_a_simulator_in_radians_a
     env = dict(os.environ, PYTHONUNBUFFERED="1")
     cli = [sys.executable, "-m", "autoscoop.cli"]
     bag = tmp_path / "robot.mcap"
-    controller = subprocess.Popen([*cli, "ros2", "controller", "--policy", "default", "--robot", ROBOT_EXAMPLE,
+    controller = forked.Popen([*cli, "ros2", "controller", "--policy", "default", "--robot", ROBOT_EXAMPLE,
                                    "--bag", str(bag)], env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
                                   text=True)
     out = tmp_path / "ros2.json"
     try:
-        radians = subprocess.run([*cli, "ros2", "sim", "--episodes", "1", "--wait-s", "60"], env=env,
-                                 capture_output=True, text=True, timeout=120)
-        raw = subprocess.run([*cli, "ros2", "sim", "--robot", ROBOT_EXAMPLE, "--episodes", "1", "--set",
+        radians = forked.run([*cli, "ros2", "sim", "--episodes", "1", "--wait-s", "60"], env=env,
+                             capture_output=True, text=True, timeout=120)
+        raw = forked.run([*cli, "ros2", "sim", "--robot", ROBOT_EXAMPLE, "--episodes", "1", "--set",
                               "pile.variants=1", "--json", str(out), "--wait-s", "60"], env=env,
                              capture_output=True, text=True, timeout=120)
     finally:

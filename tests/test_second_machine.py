@@ -9,6 +9,7 @@ import subprocess
 import sys
 from pathlib import Path
 
+import forked
 import pytest
 import yaml
 
@@ -23,14 +24,14 @@ def autoscoop(*args: str, machine: str | None = None, timeout: int = 240) -> sub
     env = {k: v for k, v in os.environ.items() if k != MACHINE_ENV}
     if machine is not None:
         env[MACHINE_ENV] = machine
-    return subprocess.run([sys.executable, "-m", "autoscoop.cli", *args], capture_output=True, text=True,
-                          timeout=timeout, env=env, check=False)
+    return forked.run([sys.executable, "-m", "autoscoop.cli", *args], capture_output=True, text=True,
+                      timeout=timeout, env=env, check=False)
 
 
 def python(code: str, machine: str) -> str:
     env = {**os.environ, MACHINE_ENV: machine}
-    return subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120, env=env,
-                          check=True).stdout
+    return forked.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120, env=env,
+                      check=True).stdout
 
 
 def test_the_scripted_scoop_fills_the_compact_bucket(tmp_path):

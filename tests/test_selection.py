@@ -2,13 +2,17 @@
 
 import json
 import math
+import shutil
 
 import pytest
 
+from autoscoop.agents.critic_files import read_critic_sidecar
+from autoscoop.agents.policy_files import sha256_of
 from autoscoop.cli import main
 from autoscoop.envs.outcome import EpisodeOutcome
 from autoscoop.evaluation.selection import delivered_fill, threshold_shortfall, total_shortfall
 from autoscoop.evaluation.stress import CASES, StressRow
+from autoscoop.training.adapt import adapt_source
 from autoscoop.training.checkpoints import keep_snapshot, snapshot_candidates
 from autoscoop.training.settings import selection_settings
 
@@ -97,6 +101,13 @@ def test_a_recipe_with_selection_validates_its_snapshots_and_a_resume_finishes_t
     assert json.loads((out / "run.json").read_text())["selected_episode"] == chosen
     snapshot = out / "evaluated" / f"episode_{chosen:05d}.safetensors"
     assert (out / "policy.safetensors").read_bytes() == snapshot.read_bytes()
+    # the critic (its run's last actor's) names the kept actor: the pair adapts from a copy of the two files
+    assert read_critic_sidecar(out / "critic.safetensors")["kept_actor_sha256"] == sha256_of(snapshot)
+    shutil.copyfile(snapshot, tmp_path / "kept.safetensors")
+    shutil.copyfile(snapshot.with_suffix(".json"), tmp_path / "kept.json")
+    shutil.copyfile(out / "critic.safetensors", tmp_path / "kept.critic.safetensors")
+    shutil.copyfile(out / "critic.json", tmp_path / "kept.critic.json")
+    assert adapt_source(str(tmp_path / "kept.safetensors")).actor == tmp_path / "kept.safetensors"
 
     (out / "selection.json").unlink()  # as if killed while validating
     (out / "policy.safetensors").write_bytes(b"stale")

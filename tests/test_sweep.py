@@ -16,6 +16,7 @@ import tempfile
 import time
 from pathlib import Path
 
+import forked
 import pytest
 
 import autoscoop  # noqa: F401
@@ -167,7 +168,7 @@ def _kill(pids: list[int]) -> None:
             pass
 
 
-def _wait_for_no_ray(root: Path, within_s: float = 20.0) -> list[int]:
+def _wait_for_no_ray(root: Path, within_s: float = 60.0) -> list[int]:
     """Wait for this test's Ray processes to end (a driver's Ray stops a moment after it); the ones still there."""
     deadline = time.time() + within_s
     while (left := _ray_processes(root)) and time.time() < deadline:
@@ -176,8 +177,8 @@ def _wait_for_no_ray(root: Path, within_s: float = 20.0) -> list[int]:
 
 
 def _sweep(args: list[str], env: dict[str, str], timeout: float = SWEEP_TIMEOUT_S) -> subprocess.CompletedProcess:
-    done = subprocess.run([sys.executable, "-m", "autoscoop.cli", "sweep", *args], env=env, capture_output=True,
-                          text=True, timeout=timeout)
+    done = forked.run([sys.executable, "-m", "autoscoop.cli", "sweep", *args], env=env, capture_output=True,
+                      text=True, timeout=timeout)
     assert done.returncode == 0, done.stdout[-3000:] + done.stderr[-3000:]
     return done
 
@@ -264,8 +265,8 @@ def test_kill_9_of_the_driver_then_resume_finishes_the_rest(tmp_path, ray_env, c
     root = Path(ray_env["RAY_TMPDIR"])
     args = ["--space", str(space), "--trials", "2", "--episodes", "8", "--out", str(out), "--num-cpus", "1"]
     log = open(tmp_path / "driver.log", "w")
-    driver = subprocess.Popen([sys.executable, "-m", "autoscoop.cli", "sweep", *args], env=ray_env, stdout=log,
-                              stderr=subprocess.STDOUT, start_new_session=True)
+    driver = forked.Popen([sys.executable, "-m", "autoscoop.cli", "sweep", *args], env=ray_env, stdout=log,
+                          stderr=subprocess.STDOUT, start_new_session=True)
     finished: list[Path] = []
     running: list[Path] = []
     deadline = time.time() + SWEEP_TIMEOUT_S

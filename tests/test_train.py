@@ -11,6 +11,7 @@ import time
 import zipfile
 from pathlib import Path
 
+import forked
 import gymnasium as gym
 import numpy as np
 import pytest
@@ -146,7 +147,7 @@ def test_kill_9_loses_at_most_one_checkpoint_interval(tmp_path):
     out = tmp_path / "run"
     command = [sys.executable, "-m", "autoscoop.cli", "train", "--episodes", "24", "--checkpoint-every", "3",
                "--out", str(out), *FAST]
-    process = subprocess.Popen(command, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    process = forked.Popen(command, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     deadline = time.time() + 120
     while time.time() < deadline and not (out / "checkpoint" / "state.json").exists():
         time.sleep(0.2)
@@ -156,8 +157,8 @@ def test_kill_9_loses_at_most_one_checkpoint_interval(tmp_path):
     rows_before = len(list(csv.DictReader(open(out / "episodes.csv"))))
     done = json.loads((out / "checkpoint" / "state.json").read_text())["episodes_done"]
     assert rows_before - done <= 3 + 1
-    run = subprocess.run([sys.executable, "-m", "autoscoop.cli", "train", "--resume", str(out), "--no-progress"],
-                         capture_output=True, text=True, timeout=300)
+    run = forked.run([sys.executable, "-m", "autoscoop.cli", "train", "--resume", str(out), "--no-progress"],
+                     capture_output=True, text=True, timeout=300)
     assert run.returncode == 0, run.stderr
     rows = list(csv.DictReader(open(out / "episodes.csv")))
     assert [int(r["episode"]) for r in rows] == list(range(1, 25))

@@ -13,6 +13,7 @@ import subprocess
 import sys
 from pathlib import Path
 
+import forked
 import pytest
 
 from autoscoop.agents.loading import load_policy
@@ -215,12 +216,12 @@ def test_over_ros_bad_stamps_stop_the_robot_within_timeout_plus_one_period():
     from autoscoop.deploy.ros1.master import RosMaster
 
     with RosMaster() as master:
-        controller = subprocess.Popen([sys.executable, "-m", "autoscoop.cli", "ros", "controller", "--policy",
+        controller = forked.Popen([sys.executable, "-m", "autoscoop.cli", "ros", "controller", "--policy",
                                        "heuristic"], env=master.env, stdout=subprocess.PIPE,
                                       stderr=subprocess.STDOUT, text=True)
         try:
-            probe = subprocess.run([sys.executable, "-c", PROBE], env=master.env, capture_output=True, text=True,
-                                   timeout=120)
+            probe = forked.run([sys.executable, "-c", PROBE], env=master.env, capture_output=True, text=True,
+                               timeout=120)
         finally:
             controller.terminate()
             log, _ = controller.communicate(timeout=15)

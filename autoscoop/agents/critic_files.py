@@ -67,6 +67,18 @@ def save_critic(model: Any, path: str | Path, actor_sha256: str, metadata: dict[
     return path
 
 
+def name_kept_actor(path: str | Path, kept_actor_sha256: str) -> None:
+    """Record in the sidecar of the critic file ``path`` the actor its run kept (``kept_actor_sha256``): a run whose
+    selection keeps an earlier snapshot than its last actor pairs that snapshot with the critic of its last actor,
+    and the pair travels together (``NAME.safetensors`` beside ``NAME.critic.safetensors``).
+
+    Raises:
+        PolicyFileError: as :func:`read_critic_sidecar`.
+    """
+    meta = read_critic_sidecar(path)
+    write_json_atomically(_sidecar(Path(path)), {**meta, "kept_actor_sha256": kept_actor_sha256})
+
+
 def read_critic_sidecar(path: str | Path) -> dict[str, Any]:
     """The sidecar of a critic file, its format and weights hash checked (no tensor is read).
 

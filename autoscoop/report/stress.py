@@ -3,7 +3,8 @@
 Nothing here simulates; ``autoscoop stress`` runs the cases (:mod:`autoscoop.evaluation.stress`)
 and calls :func:`write_stress_report`. In the heat map a cell's colour is how far the metric is from
 the case's threshold (green: holds, red: does not, the deeper the farther; grey: no threshold on it
-in that case); its number is the measured value.
+in that case); its number is the measured value. Matplotlib is imported by the functions that draw: the
+table and verdict serve ``autoscoop stress`` without it.
 """
 
 from __future__ import annotations
@@ -14,9 +15,6 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-from matplotlib.cm import ScalarMappable
-from matplotlib.colors import ListedColormap, Normalize, to_rgb
-from matplotlib.figure import Figure
 
 from autoscoop.core.safe_files import atomic_output, write_text_atomically
 from autoscoop.envs.definitions import definition_lines
@@ -29,7 +27,6 @@ from autoscoop.evaluation.stress import (
     metric_header,
     unit_suffix,
 )
-from autoscoop.report.figures import DPI
 
 MARGIN_SCALES = {"fill_factor_mean": 0.25, "volumetric_fill_mean": 0.25, "success_rate": 0.25,
                  "reached_rate": 0.25, "cycle_time_mean": 2.0, "overload_rate": 0.05}
@@ -102,6 +99,8 @@ def verdict(rows: Sequence[StressRow]) -> str:
 
 
 def _blend(light: str, dark: str, amount: float) -> tuple[float, float, float]:
+    from matplotlib.colors import to_rgb  # noqa: PLC0415
+
     a, b = np.array(to_rgb(light)), np.array(to_rgb(dark))
     return tuple(a + (b - a) * float(np.clip(amount, 0.0, 1.0)))
 
@@ -124,12 +123,20 @@ def scaled_margin(check: Check) -> float:
     return max(scaled, 0.0)
 
 
-def _legend_cmap() -> ListedColormap:
+def _legend_cmap():
+    from matplotlib.colors import ListedColormap  # noqa: PLC0415
+
     return ListedColormap([margin_colour(m) for m in np.linspace(-1.0, 1.0, 256)])
 
 
 def plot_stress(rows: Sequence[StressRow], path: str | Path, title: str = "stress suite") -> Path:
     """The heat map: a row per case, a column per metric and one for the result; the value in each cell."""
+    from matplotlib.cm import ScalarMappable  # noqa: PLC0415
+    from matplotlib.colors import Normalize, to_rgb  # noqa: PLC0415
+    from matplotlib.figure import Figure  # noqa: PLC0415
+
+    from autoscoop.report.figures import DPI  # noqa: PLC0415
+
     metrics = list(METRIC_NAMES)
     n_rows, n_cols = len(rows), len(metrics) + 1
     colours = np.ones((n_rows, n_cols, 3))

@@ -20,6 +20,7 @@ from typing import Any
 
 from filelock import FileLock, Timeout
 
+from autoscoop.agents.critic_files import name_kept_actor
 from autoscoop.agents.loading import refuse_untrusted_zip
 from autoscoop.agents.policy_files import (
     PolicyFileError,
@@ -294,12 +295,15 @@ def snapshot_candidates(run_dir: Path, count: int, after_episode: int = 0) -> li
 def keep_snapshot(run_dir: Path, episode: int, record: dict[str, Any]) -> None:
     """Make snapshot ``episode`` the run's policy: copy its actor and metadata over ``policy.safetensors`` and
     ``policy.json``, write ``record`` to ``selection.json`` and the episode to ``run.json``
-    (``selected_episode``). ``policy.zip`` stays the best periodic evaluation's full model (fine-tuning's start)."""
+    (``selected_episode``). ``policy.zip`` stays the best periodic evaluation's full model (fine-tuning's start).
+    The critic file, the last actor's, names the kept actor in its sidecar (``kept_actor_sha256``)."""
     actor = run_dir / "evaluated" / f"episode_{episode:05d}.safetensors"
     for source, target in ((actor, run_dir / "policy.safetensors"), (actor.with_suffix(".json"), run_dir / "policy.json")):
         tmp = target.with_name(target.name + ".tmp")
         shutil.copyfile(source, tmp)
         os.replace(tmp, target)
+    if (run_dir / CRITIC_FILE).is_file():
+        name_kept_actor(run_dir / CRITIC_FILE, sha256_of(actor))
     info = read_run_json(run_dir)
     info["selected_episode"] = episode
     write_run_json(run_dir, info)

@@ -40,7 +40,7 @@ import yaml
 from stable_baselines3 import DDPG, PPO, TD3
 
 from autoscoop.agents.algorithms import ALGORITHMS
-from autoscoop.agents.critic_files import has_critic, save_critic
+from autoscoop.agents.critic_files import has_critic, name_kept_actor, save_critic
 from autoscoop.agents.demonstrations import add_scripted_demonstrations
 from autoscoop.agents.policy_files import sha256_of
 from autoscoop.core.config import ScoopConfig, from_dict, save_yaml
@@ -337,6 +337,8 @@ def train_model(run_dir: Path, config: ScoopConfig, spec: dict[str, Any], info: 
         with atomic_output(run_dir / "policy.zip") as tmp:
             model.save(tmp)
         save_safe_actor(model, run_dir / "policy.safetensors", actor_meta(info, run_dir), target=target)
+    if (run_dir / CRITIC_FILE).is_file():  # the kept actor travels with its run's critic (NAME.critic.safetensors)
+        name_kept_actor(run_dir / CRITIC_FILE, sha256_of(run_dir / "policy.safetensors"))
     info.update(status="finished", policy_zip_sha256=sha256_of(run_dir / "policy.zip"))
     write_run_json(run_dir, info)
     remove_checkpoints(run_dir)
