@@ -35,7 +35,7 @@ system-deps:
 # on two cores a third keeps them busy while the others wait on real-time ROS runs and Ray's start.
 TEST_WORKERS ?= 3
 test: install-test system-deps
-	$(BIN)/pytest --numprocesses $(TEST_WORKERS) --dist loadfile
+	$(BIN)/pytest --numprocesses $(TEST_WORKERS) --dist loadfile --durations=15
 
 bench: install
 	$(BIN)/autoscoop bench --json benchmarks/results/speed/bench.json
