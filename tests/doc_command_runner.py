@@ -139,8 +139,8 @@ def pages(tmp_path_factory):
 def spare_run(tmp_path_factory):
     """A tiny finished run, for a ``runs/RUN`` that a page reads before any of its commands trains one."""
     folder = tmp_path_factory.mktemp("spare") / "runs" / "paper-spare"
-    run = subprocess.run([*launcher("autoscoop"), "train", "--recipe", "paper", "--episodes", "3", "--no-progress",
-                          "--out", str(folder)], capture_output=True, text=True, timeout=TIMEOUT_S, env=base_env())
+    run = forked.run([*launcher("autoscoop"), "train", "--recipe", "paper", "--episodes", "3", "--no-progress",
+                      "--out", str(folder)], capture_output=True, text=True, timeout=TIMEOUT_S, env=base_env())
     assert run.returncode == 0, run.stdout[-2000:] + run.stderr[-2000:]
     return folder
 

@@ -27,8 +27,10 @@ EPISODES_BY_COMMAND = {("train",): 3, ("adapt",): 2, ("ros", "sim"): 3, ("ros2",
 3 scoops, as the README's figures over ROS are judged (fill >= 0.65, success >= 0.9)."""
 SCALED = {"--cycles": "1", "--shifts": "1", "--repeats": "1", "--steps": "200", "--check-states": "1000",
           "--demo-episodes": "2",
-          "--trials": "3", "--estop-trials": "2", "--seeds": "0", "--worlds": "heavy"}
-"""Other options set to a small value where a command line gives them (``--seeds`` takes one seed for all)."""
+          "--trials": "3", "--estop-trials": "2", "--seeds": "0", "--worlds": "heavy", "--workers": "1"}
+"""Other options set to a small value where a command line gives them (``--seeds`` takes one seed for all;
+``--workers 1``: a few episodes do not pay for starting worker processes, and the results do not depend on it,
+which tests/test_stress.py checks)."""
 MANY_VALUES = ("--seeds",)
 """Options that take several words (``--seeds 0 1 2 3 4``): scaling replaces them all."""
 ADAPT_SCALED = {"--eval-every": "1", "--eval-episodes": "1", "--candidates": "1", "--validation-episodes": "1"}

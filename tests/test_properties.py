@@ -35,6 +35,9 @@ from autoscoop.deploy.safety import CommandLimiter, Stamp
 
 EXAMPLES = 500
 PROPERTY = settings(max_examples=EXAMPLES, deadline=None, database=None, suppress_health_check=[HealthCheck.too_slow])
+CONTROLLER_EXAMPLES = 200
+"""Scenarios of the controller's loop (each hundreds of updates, a tenth of a second): fewer than the config's
+quick examples, twice hypothesis's default."""
 
 
 # ==================================================================== config: strategies from the fields
@@ -408,7 +411,7 @@ def _speed_at(commands, times, t) -> float:
     return 0.0 if i == 0 else commands[i - 1][1].speed_mps
 
 
-@PROPERTY
+@settings(PROPERTY, max_examples=CONTROLLER_EXAMPLES)
 @given(SCENARIO)
 def test_every_command_is_finite_within_limits_and_a_fault_stops_the_robot(scenario):
     steps, timeout_s, max_future_s, seed = scenario

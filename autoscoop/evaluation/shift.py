@@ -12,9 +12,7 @@ of the shift), so the pile's profiles show the face retreating.
 from __future__ import annotations
 
 import math
-import multiprocessing
 from collections.abc import Callable
-from concurrent.futures import ProcessPoolExecutor
 from typing import Any
 
 import numpy as np
@@ -31,7 +29,7 @@ from autoscoop.core.version import __version__, dependency_versions
 from autoscoop.envs.rollout import rollout
 from autoscoop.envs.shift import make_shift_env, shift_world_config
 from autoscoop.evaluation.shift_film import ShiftFilm
-from autoscoop.evaluation.stress import one_thread_per_worker
+from autoscoop.evaluation.workers import worker_pool
 from autoscoop.sim.work_meter import WorkMeter
 
 PROFILE_BIN_M = 0.02
@@ -262,7 +260,7 @@ def run_shifts(specs: list[str], config: ScoopConfig, cycles: int, seeds: list[i
         config: the config (``shift.*``).
         cycles: loading cycles per shift.
         seeds: the shifts' seeds, the same for every policy.
-        workers: processes sharing the shifts (spawned; the results do not depend on it).
+        workers: processes sharing the shifts (:func:`~autoscoop.evaluation.workers.worker_pool`; the results do not depend on it).
         trust: allow an SB3 .zip policy (loading one unpickles it).
         progress: show progress bars.
         film: films the first shift (the first policy's, on the first seed), run in this process.
@@ -284,9 +282,7 @@ def run_shifts(specs: list[str], config: ScoopConfig, cycles: int, seeds: list[i
         jobs = jobs[1:]
     if workers == 1 or len(jobs) <= 1:
         return filmed + [_shift_of_spec(spec, seed, config.to_dict(), cycles, trust, progress) for spec, seed in jobs]
-    context = multiprocessing.get_context("spawn")
-    with ProcessPoolExecutor(max_workers=min(workers, len(jobs)), mp_context=context,
-                             initializer=one_thread_per_worker) as pool:
+    with worker_pool(min(workers, len(jobs))) as pool:
         futures = [pool.submit(_shift_of_spec, spec, seed, config.to_dict(), cycles, trust, False) for spec, seed in jobs]
         bar = tqdm(futures, desc=f"shifts ({min(workers, len(jobs))} workers)", unit="shift", disable=not progress)
         return filmed + [future.result() for future in bar]

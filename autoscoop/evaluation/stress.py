@@ -14,10 +14,7 @@ The terms are those of :mod:`autoscoop.envs.definitions`.
 from __future__ import annotations
 
 import math
-import multiprocessing
-import os
 from collections.abc import Callable, Iterable, Mapping, Sequence
-from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -30,6 +27,7 @@ from autoscoop.core.safe_files import quote
 from autoscoop.envs.outcome import EpisodeOutcome
 from autoscoop.evaluation.evaluate import evaluate
 from autoscoop.evaluation.summary import outcome_statistics
+from autoscoop.evaluation.workers import worker_pool
 
 OPERATORS: dict[str, Callable[[float, float], bool]] = {">=": lambda v, t: v >= t, "<=": lambda v, t: v <= t}
 
@@ -253,12 +251,6 @@ def _run_case_in_worker(policy: str, config: dict[str, Any], case: StressCase, e
     return run_case(policy, ScoopConfig.from_dict(config), case, episodes, seed, trust=trust, progress=False)
 
 
-def one_thread_per_worker() -> None:
-    """Worker set-up: one math thread each (torch, BLAS), so ``--workers N`` uses N cores, not N x all."""
-    for name in ("OMP_NUM_THREADS", "MKL_NUM_THREADS", "OPENBLAS_NUM_THREADS"):
-        os.environ.setdefault(name, "1")
-
-
 def run_stress(policy: str, config: ScoopConfig, episodes: int, seed: int = 0,
                cases: Sequence[StressCase] | None = None, workers: int = 1, trust: bool = False,
                progress: bool = True) -> list[StressRow]:
@@ -272,7 +264,7 @@ def run_stress(policy: str, config: ScoopConfig, episodes: int, seed: int = 0,
         episodes: episodes per case, seeds ``seed .. seed + episodes - 1``.
         cases: which (default: all of :data:`CASES`).
         workers: worker processes (1: run here, a progress bar per case; more: cases run in parallel,
-            spawned processes, one bar over the cases). The results are the same either way.
+            processes of :func:`~autoscoop.evaluation.workers.worker_pool`, one bar over the cases). The results are the same either way.
         trust: allow a pickled SB3 zip from outside its run directory.
         progress: show the progress bars.
 
@@ -289,9 +281,7 @@ def run_stress(policy: str, config: ScoopConfig, episodes: int, seed: int = 0,
     if workers == 1 or len(cases) == 1:
         return [row_from_outcomes(case, run_case(policy, config, case, episodes, seed, trust, progress))
                 for case in cases]
-    context = multiprocessing.get_context("spawn")
-    with ProcessPoolExecutor(max_workers=min(workers, len(cases)), mp_context=context,
-                             initializer=one_thread_per_worker) as pool:
+    with worker_pool(min(workers, len(cases))) as pool:
         futures = [pool.submit(_run_case_in_worker, policy, config.to_dict(), case, episodes, seed, trust)
                    for case in cases]
         bar = tqdm(total=len(cases), desc=f"stress ({min(workers, len(cases))} workers)", unit="case",
