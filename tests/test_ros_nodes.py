@@ -175,21 +175,32 @@ def test_sim_and_controller_scoop_over_ros_with_remapped_topics(master, tmp_path
     replayed = json.loads((tmp_path / "replay.json").read_text())
     assert replayed["verdicts"]["running"] >= 5, replayed
     # the simulator's bag has the commands as they arrived there: on a loaded machine one may arrive a control
-    # period late and differ at that update (docs/robot.md); most updates reproduce the command exactly
-    exact = same_commands_fraction(tmp_path / "replay" / "replay.csv")
-    assert exact >= 0.8, (exact, replayed)
+    # period late, and from there on the sent commands lead the replayed ones by a period (docs/robot.md)
+    matched = commands_matched_within(tmp_path / "replay" / "replay.csv", PERIODS_OF_LAG)
+    assert matched >= 0.8, (matched, replayed)
 
 
-def same_commands_fraction(csv_path):
-    """The fraction of compared updates in a replay CSV whose replayed command equals the sent one (1e-6)."""
+PERIODS_OF_LAG = 2
+"""How many control periods a command may have arrived late at the simulator (a busy machine's scheduling)."""
+
+
+def commands_matched_within(csv_path, periods: int) -> float:
+    """The fraction of the replay CSV's updates whose sent command equals (to 1e-6, channel by channel) the one
+    the replayed policy computed at that update or at one up to ``periods`` updates before or after it."""
     import csv
 
-    compared = same = 0
-    for row in csv.DictReader(csv_path.open()):
-        pairs = [(float(row[f"sent_{c}"]), float(row[c])) for c in ("speed_mps", "lift_rad", "tilt_rad")]
+    channels = ("speed_mps", "lift_rad", "tilt_rad")
+    rows = [{key: float(row[key]) for key in (*channels, *(f"sent_{c}" for c in channels))}
+            for row in csv.DictReader(csv_path.open())]
+
+    def same(sent_row, replayed_row):
+        pairs = [(sent_row[f"sent_{c}"], replayed_row[c]) for c in channels]
         pairs = [(a, b) for a, b in pairs if np.isfinite(a) and np.isfinite(b)]
-        if pairs:
-            compared += 1
-            same += all(abs(a - b) <= 1e-6 for a, b in pairs)
-    assert compared >= 5, csv_path.read_text()[:2000]
-    return same / compared
+        return bool(pairs) and all(abs(a - b) <= 1e-6 for a, b in pairs)
+
+    compared = [i for i, row in enumerate(rows) if any(np.isfinite(row[f"sent_{c}"]) and np.isfinite(row[c])
+                                                       for c in channels)]
+    assert len(compared) >= 5, csv_path.read_text()[:2000]
+    matched = sum(any(same(rows[i], rows[j]) for j in range(max(0, i - periods), min(len(rows), i + periods + 1)))
+                  for i in compared)
+    return matched / len(compared)
