@@ -20,7 +20,7 @@ import subprocess
 import sys
 from pathlib import Path
 
-from autoscoop.core.safe_files import write_json_atomically, write_text_atomically
+from autoscoop.core.safe_files import read_yaml, write_json_atomically, write_text_atomically
 
 FILL_BAR, SUCCESS_BAR = 0.70, 0.95
 """The trained policy's nominal bars: fill factor of the rated load, and success."""
@@ -31,10 +31,13 @@ def autoscoop(*args: str) -> None:
 
 
 def train(machine: str, recipe: str, seed: int, run: Path, extra: list[str]) -> None:
-    """Train one seed, or continue it where a run directory was cut (a finished one is kept)."""
+    """Train one seed, or continue it where a run directory was cut: in training, or finished but cut while its
+    recipe's selection validated the snapshots (no selection.json yet); a finished and chosen one is kept."""
     info = run / "run.json"
     if info.is_file():
-        if json.loads(info.read_text()).get("status") != "finished":
+        finished = json.loads(info.read_text()).get("status") == "finished"
+        choosing = "selection" in read_yaml(run / "hyperparams.yaml", "hyperparams") and not (run / "selection.json").is_file()
+        if not finished or choosing:
             autoscoop("train", "--machine", machine, "--resume", str(run))
         return
     autoscoop("train", "--machine", machine, "--recipe", recipe, "--seed", str(seed), "--out", str(run),
