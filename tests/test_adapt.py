@@ -168,8 +168,8 @@ def test_an_adapt_run_killed_mid_way_resumes_to_the_end(tmp_path):
     log = tmp_path / "driver.log"
     with log.open("w") as sink:  # a file, not a pipe: the simulators' workers outlive the killed process
         killed = forked.Popen([sys.executable, "-c", KILL_DRIVER, "5", "adapt", "--out", str(run), *TINY,
-                                   "--checkpoint-every", "2"], stdout=sink, stderr=subprocess.STDOUT,
-                                  start_new_session=True)
+                               "--checkpoint-every", "2"], stdout=sink, stderr=subprocess.STDOUT,
+                              start_new_session=True)
         try:
             killed.wait(timeout=120)
         finally:

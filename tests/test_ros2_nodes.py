@@ -211,15 +211,15 @@ def test_sim_and_controller_scoop_over_ros2_in_a_namespace_with_remapped_topics(
     remap = "joint_states:=sensors/joints"
     env = dict(os.environ, PYTHONUNBUFFERED="1")
     controller = forked.Popen([sys.executable, "-m", "autoscoop.cli", "ros2", "controller", "--policy",
-                                   "heuristic", "--records", str(tmp_path / "robot"), "--bag",
-                                   str(tmp_path / "controller.mcap"), "__ns:=/e2e", remap],
-                                  env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+                               "heuristic", "--records", str(tmp_path / "robot"), "--bag",
+                               str(tmp_path / "controller.mcap"), "__ns:=/e2e", remap],
+                              env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
     out = tmp_path / "ros2_sim.json"
     try:
         sim = forked.run([sys.executable, "-m", "autoscoop.cli", "ros2", "sim", "--episodes", "1", "--json",
-                              str(out), "--set", "pile.variants=1", "--joint-noise-rad", "0.001", "--wait-s", "60",
-                              "--bag", str(tmp_path / "sim.mcap"), "__ns:=/e2e", remap], env=env,
-                             capture_output=True, text=True, timeout=120)
+                          str(out), "--set", "pile.variants=1", "--joint-noise-rad", "0.001", "--wait-s", "60",
+                          "--bag", str(tmp_path / "sim.mcap"), "__ns:=/e2e", remap], env=env,
+                         capture_output=True, text=True, timeout=120)
     finally:
         controller.terminate()  # SIGTERM: the node stops the robot, writes its record and leaves
         log, _ = controller.communicate(timeout=20)
@@ -258,9 +258,9 @@ def check_recordings_and_replay(folder):
 
         out = folder / f"replay_{name}"
         run = forked.run([sys.executable, "-m", "autoscoop.cli", "replay", str(path), "--policy", "heuristic",
-                              "--namespace", "/e2e", "--set", "pile.variants=1", "--robot", str(remapped_config(folder)),
-                              "--out", str(out), "--json", str(out / "summary.json")],
-                             capture_output=True, text=True, timeout=120)
+                          "--namespace", "/e2e", "--set", "pile.variants=1", "--robot", str(remapped_config(folder)),
+                          "--out", str(out), "--json", str(out / "summary.json")],
+                         capture_output=True, text=True, timeout=120)
         assert run.returncode == 0, run.stdout + run.stderr
         summary = json.loads((out / "summary.json").read_text())
         assert summary["schedule"] == "recorded" and summary["verdicts"]["running"] >= 5, summary
@@ -287,15 +287,15 @@ def test_the_readme_pair_scoops_in_raw_readings_refuses_a_simulator_in_radians_a
     cli = [sys.executable, "-m", "autoscoop.cli"]
     bag = tmp_path / "robot.mcap"
     controller = forked.Popen([*cli, "ros2", "controller", "--policy", "default", "--robot", ROBOT_EXAMPLE,
-                                   "--bag", str(bag)], env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
-                                  text=True)
+                               "--bag", str(bag)], env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
+                              text=True)
     out = tmp_path / "ros2.json"
     try:
         radians = forked.run([*cli, "ros2", "sim", "--episodes", "1", "--wait-s", "60"], env=env,
                              capture_output=True, text=True, timeout=120)
         raw = forked.run([*cli, "ros2", "sim", "--robot", ROBOT_EXAMPLE, "--episodes", "1", "--set",
-                              "pile.variants=1", "--json", str(out), "--wait-s", "60"], env=env,
-                             capture_output=True, text=True, timeout=120)
+                          "pile.variants=1", "--json", str(out), "--wait-s", "60"], env=env,
+                         capture_output=True, text=True, timeout=120)
     finally:
         controller.terminate()
         log, _ = controller.communicate(timeout=20)

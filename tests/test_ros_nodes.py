@@ -144,9 +144,9 @@ def test_sim_and_controller_scoop_over_ros_with_remapped_topics(master, tmp_path
     out = tmp_path / "ros_sim.json"
     try:
         sim = forked.run([sys.executable, "-m", "autoscoop.cli", "ros", "sim", "--episodes", "1", "--json",
-                              str(out), "--set", "pile.variants=1", "--joint-noise-rad", "0.001",
-                              *(["--bag", str(tmp_path / "sim.bag")] if HAVE_ROSBAGS else []), remap],
-                             env=dict(master.env, ROS_NAMESPACE="e2e"), capture_output=True, text=True, timeout=120)
+                          str(out), "--set", "pile.variants=1", "--joint-noise-rad", "0.001",
+                          *(["--bag", str(tmp_path / "sim.bag")] if HAVE_ROSBAGS else []), remap],
+                         env=dict(master.env, ROS_NAMESPACE="e2e"), capture_output=True, text=True, timeout=120)
     finally:
         log = stop(controller)
     assert sim.returncode == 0, sim.stdout[-3000:] + sim.stderr[-3000:] + log[-3000:]
@@ -168,9 +168,9 @@ def test_sim_and_controller_scoop_over_ros_with_remapped_topics(master, tmp_path
     # the simulator's ROS 1 bag, replayed with the same policy, gives the commands that were sent
     (tmp_path / "robot.yaml").write_text("topics:\n  joint_states: sensors/joints\n")
     replay = forked.run([sys.executable, "-m", "autoscoop.cli", "replay", str(tmp_path / "sim.bag"), "--policy",
-                             "heuristic", "--namespace", "/e2e", "--robot", str(tmp_path / "robot.yaml"), "--out",
-                             str(tmp_path / "replay"), "--json", str(tmp_path / "replay.json")],
-                            capture_output=True, text=True, timeout=120)
+                         "heuristic", "--namespace", "/e2e", "--robot", str(tmp_path / "robot.yaml"), "--out",
+                         str(tmp_path / "replay"), "--json", str(tmp_path / "replay.json")],
+                        capture_output=True, text=True, timeout=120)
     assert replay.returncode == 0, replay.stdout + replay.stderr
     replayed = json.loads((tmp_path / "replay.json").read_text())
     assert replayed["verdicts"]["running"] >= 5, replayed

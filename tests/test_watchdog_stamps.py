@@ -217,8 +217,8 @@ def test_over_ros_bad_stamps_stop_the_robot_within_timeout_plus_one_period():
 
     with RosMaster() as master:
         controller = forked.Popen([sys.executable, "-m", "autoscoop.cli", "ros", "controller", "--policy",
-                                       "heuristic"], env=master.env, stdout=subprocess.PIPE,
-                                      stderr=subprocess.STDOUT, text=True)
+                                   "heuristic"], env=master.env, stdout=subprocess.PIPE,
+                                  stderr=subprocess.STDOUT, text=True)
         try:
             probe = forked.run([sys.executable, "-c", PROBE], env=master.env, capture_output=True, text=True,
                                timeout=120)
