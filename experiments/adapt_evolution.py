@@ -9,7 +9,7 @@ thousand apart per iteration), ranks them and steps the weights with Adam (OpenA
 
 Each perturbed actor's fitness is its mean episode score in the target world plus a term for the guard cases
 (``--held CASE:EPISODES,...``, the stress cases); an episode scores success (0 or 1) plus its volumetric fill (paid
-up to 0.72, the nominal scoop's) minus 2 for an overload. ``--fitness sum`` adds the guard cases' mean score;
+up to 0.72, the nominal scoop's) minus 2 for an overload. ``--fitness sum`` adds the guard cases' mean score (times ``--held-weight``);
 ``--fitness guard`` adds ``--guard-weight`` times the sum over the guard cases of how far each falls more than
 0.05 below the starting actor on the same seeds (nothing for gains). Each iterate is written as
 ``OUT/itNNN.safetensors``; check one with ``autoscoop stress --policy OUT/it006.safetensors --episodes 100``.
@@ -57,6 +57,7 @@ parser.add_argument("--target-episodes", type=int, default=10)
 parser.add_argument("--held", default="angle_25:4,heavy:8,light:2,torque_mass:4,randomized:8")
 parser.add_argument("--fitness", choices=("sum", "guard"), default="guard")
 parser.add_argument("--guard-weight", type=float, default=2.0)
+parser.add_argument("--held-weight", type=float, default=1.0, help="with --fitness sum: weight of the guard cases' mean")
 parser.add_argument("--workers", type=int, default=2)
 args = parser.parse_args()
 
@@ -117,7 +118,7 @@ def main() -> None:
             parts = pool.map(fitness_parts, [(i, c, seed) for i, c in enumerate(candidates)])
             reference = np.array(parts[-1][1])
             if args.fitness == "sum":
-                fitness = np.array([t + float(np.mean(h)) for t, h, _ in parts[:-2]])
+                fitness = np.array([t + args.held_weight * float(np.mean(h)) for t, h, _ in parts[:-2]])
             else:
                 fitness = np.array([t + args.guard_weight * float(np.minimum(0.0, np.array(h) - reference + GUARD_TOLERANCE).sum())
                                     for t, h, _ in parts[:-2]])
