@@ -139,6 +139,7 @@ BAD = {
     "bucket mass unlike the MJCF's": (setting("bucket.mass_kg", 0.9), "bucket.mass_kg"),
     "arm longer than the MJCF's": (setting("arm.tilt_joint_from_lift_joint_m", [0.70, -0.223]),
                                    "arm.tilt_joint_from_lift_joint_m"),
+    "bucket wider than the MJCF's side plates": (setting("bucket.inner_half_width_m", 0.26), "bucket.inner_half_width_m"),
 }
 
 
@@ -172,6 +173,18 @@ def test_an_mjcf_whose_joint_range_differs_is_named(tmp_path, capsys):
     rc, _, err = check(write_machine(tmp_path / "m", data, xml), capsys)
     assert rc == 2
     assert "joints.tilt.range_rad = [-0.5, 0.9] but the MJCF's joint 'tilt' range is [-0.5, 1.2]" in err
+
+
+def test_side_plates_left_at_the_old_width_are_named(tmp_path, capsys):
+    """A wider bucket in machine.yaml whose MJCF side plates stayed where they were: named, with both widths."""
+    data = komodo_data()
+    data["mjcf"] = "loader.xml"
+    xml = LOADER_XML.read_text().replace('mesh="bucket_side" pos="0 0.2400 0"', 'mesh="bucket_side" pos="0 0.2700 0"')
+    rc, _, err = check(write_machine(tmp_path / "m", data, xml), capsys)
+    assert rc == 2
+    assert ("bucket.inner_half_width_m = 0.23 but the MJCF's geom 'bucket_side_left' inner face from the bucket's "
+            "centre (y) is 0.26") in err
+    assert "bucket_side_right" not in err  # the right plate still agrees
 
 
 def test_a_folder_without_a_machine_exits_2(tmp_path, capsys):

@@ -66,6 +66,18 @@ def test_a_komodo_policy_is_refused_on_the_compact():
     assert "Traceback" not in done.stderr
 
 
+def test_the_refusal_names_a_shipped_machine_by_name_and_a_users_machine_by_its_folder():
+    from autoscoop.core.machine import MachineError, refuse_other_machine
+
+    komodo = load_machine("komodo")
+    with pytest.raises(MachineError, match=r"pass --machine compact to run it"):
+        refuse_other_machine({"machine": "compact"}, komodo, "--policy p")
+    # a user's machine is found by its folder, not its name: a bare name would not load
+    with pytest.raises(MachineError, match=r"pass --machine DIR \(the folder of the machine.yaml named 'wombat'\)"):
+        refuse_other_machine({"machine": "wombat"}, komodo, "--policy p")
+    refuse_other_machine({"machine": "komodo"}, komodo, "--policy p")  # its own machine: no error
+
+
 def test_adapt_refuses_a_policy_of_another_machine_before_simulating(tmp_path):
     done = autoscoop("adapt", "--machine", "compact", "--policy", str(KOMODO_POLICY), "--episodes", "2",
                      "--out", str(tmp_path / "run"), timeout=120)

@@ -457,6 +457,7 @@ def refuse_other_machine(metadata: dict[str, Any], machine: Machine, source: str
     """
     recorded = str(metadata.get("machine") or FILES_BEFORE_MACHINES)
     if recorded != machine.name:
+        own = recorded if recorded in shipped_machines() else f"DIR (the folder of the machine.yaml named {recorded!r})"
         raise MachineError(f"{source}: a policy for machine {recorded!r}, but this run's machine is {machine.name!r}: "
-                           f"pass --machine {recorded} to run it on its own machine, or adapt or train one for "
+                           f"pass --machine {own} to run it on its own machine, or adapt or train one for "
                            f"{machine.name!r}")

@@ -2,7 +2,8 @@
 
 Parts are found by name, as every module reads the model: bodies ``chassis``, ``arm_base``, ``arm``,
 ``bucket`` and ``wheel_fl`` / ``wheel_fr`` / ``wheel_rl`` / ``wheel_rr``; joints and actuators ``lift``,
-``tilt`` and the four wheels; site ``tip``; and every sensor the YAML lists. Lengths in m, masses in kg.
+``tilt`` and the four wheels; site ``tip``; the bucket's side plates, geoms ``bucket_side_left`` and
+``bucket_side_right``; and every sensor the YAML lists. Lengths in m, masses in kg.
 """
 
 from __future__ import annotations
@@ -16,6 +17,7 @@ import numpy as np
 from autoscoop.core.machine import Machine
 
 WHEELS = ("wheel_fl", "wheel_fr", "wheel_rl", "wheel_rr")
+SIDE_PLATES = ("bucket_side_left", "bucket_side_right")
 LENGTH_TOLERANCE = 1e-3
 """Largest disagreement of a length, as a share of the chassis length (0.5 mm on the Komodo): the MJCF
 writes some points rounded (an arm's centre of mass given along its line in the YAML)."""
@@ -90,6 +92,11 @@ def disagreements(machine: Machine, model: mujoco.MjModel) -> list[str]:
             out.append("bucket.mount_pitch_rad: the MJCF's body 'bucket' is turned about an axis other than y")
         same("bucket.mount_pitch_rad", machine.bucket.mount_pitch_rad, 2.0 * math.atan2(y, w),
              "body 'bucket' pitch")
+        for name in SIDE_PLATES:
+            if part("geom", name, "bucket.inner_half_width_m") is not None:
+                same("bucket.inner_half_width_m", machine.bucket.inner_half_width_m,
+                     inner_face_from_bucket_centre(model, name), f"geom {name!r} inner face from the bucket's centre "
+                     "(y)", True)
     site = part("site", "tip", "bucket.tip_from_tilt_joint_m")
     if site is not None:
         same("bucket.tip_from_tilt_joint_m", [machine.bucket.tip_from_tilt_joint_m, 0.0], xz(site.pos),
@@ -137,6 +144,25 @@ def disagreements(machine: Machine, model: mujoco.MjModel) -> list[str]:
     for i, sensor in enumerate(machine.sensors):
         part("sensor", sensor.name, f"sensors[{i}].name")
     return out
+
+
+def inner_face_from_bucket_centre(model: mujoco.MjModel, geom_name: str) -> float:
+    """How far the face of a bucket's side plate nearest the bucket's centre line lies from it (m, along the
+    bucket frame's y): the nearest of the plate's vertices (a mesh's, or a box's corners) at the model's rest pose."""
+    data = mujoco.MjData(model)
+    mujoco.mj_kinematics(model, data)
+    geom = model.geom(geom_name)
+    if int(geom.type[0]) == int(mujoco.mjtGeom.mjGEOM_MESH):
+        mesh = int(geom.dataid[0])
+        start, count = int(model.mesh_vertadr[mesh]), int(model.mesh_vertnum[mesh])
+        local = np.asarray(model.mesh_vert[start:start + count], dtype=float)
+    else:
+        signs = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)], dtype=float)
+        local = signs * np.asarray(geom.size, dtype=float)
+    world = data.geom_xpos[geom.id] + local @ data.geom_xmat[geom.id].reshape(3, 3).T
+    bucket = model.body("bucket").id
+    in_bucket = (world - data.xpos[bucket]) @ data.xmat[bucket].reshape(3, 3)
+    return float(np.abs(in_bucket[:, 1]).min())
 
 
 def _fmt(values: np.ndarray) -> str:
