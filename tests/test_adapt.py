@@ -156,7 +156,16 @@ def test_a_small_adapt_run_keeps_a_validated_snapshot_and_exports_it(tmp_path, c
     assert "start" in {c["name"] for c in selection["candidates"]}
     assert all(c["cases"] == 12 for c in selection["candidates"])  # the target world and the eleven stress cases
     assert (run / "policy.onnx").is_file() and (run / "critic.safetensors").is_file()
-    assert info["scoops_simulated"] == 6 + 1 * 3 + 2 * 12 * 1  # training, periodic (0, 3, 6), validation
+    assert selection["settings"]["confidence"] == 0.95
+    confirmation = selection["confirmation"]  # a snapshot that ranks above the start is run again beside it
+    ranked_first = selection["candidates"][0]["name"]
+    assert (confirmation is None) == (ranked_first == "start")
+    if confirmation is not None:
+        assert confirmation["seed"] == 30_001 and confirmation["candidate"] == ranked_first
+        kept_start = selection["selected_episode"] == 0
+        assert confirmation["confirmed"] == (confirmation["confidence"] >= 0.95) == (not kept_start)
+    # training, periodic (0, 3, 6), validation, and the confirmation's two policies
+    assert info["scoops_simulated"] == 6 + 1 * 3 + 2 * 12 * 1 + (2 * 12 * 1 if confirmation else 0)
     assert "simulated scoops" in capsys.readouterr().out
     # an adapted run can be adapted again: its critic lies beside it
     critic = read_critic_sidecar(run / "critic.safetensors")
@@ -196,7 +205,8 @@ def test_adapt_help_names_every_option(capsys):
         main(["adapt", "--help"])
     text = capsys.readouterr().out
     for option in ("--policy", "--set", "--config", "--episodes", "--seed", "--resume", "--held-envs",
-                   "--critic-warmup-steps", "--actor-lr-scale", "--eval-episodes", "--candidates", "--validation-episodes"):
+                   "--critic-warmup-steps", "--actor-lr-scale", "--eval-episodes", "--candidates", "--validation-episodes",
+                   "--confidence"):
         assert option in text
 
 
@@ -225,3 +235,21 @@ def test_the_anchored_actor_drifts_less_from_its_start_than_plain_ddpg():
     assert drift(AnchoredDDPG) == pytest.approx(plain)  # no anchor: DDPG unchanged
     with pytest.raises(ValueError, match="above 0"):
         AnchoredDDPG("MlpPolicy", gym.make("Pendulum-v1"), device="cpu").set_anchor(torch.nn.Linear(1, 1), 0.0)
+
+
+def test_a_confirmation_of_the_start_against_itself_is_never_sure(capsys):
+    """The confirmation runs both policies on the seeds after the validation's; a candidate no different from the
+    start (here the same file) never confirms, so the run keeps the policy it started from."""
+    from types import SimpleNamespace
+
+    from autoscoop.commands.adapt_cmd import confirm_candidate
+    from autoscoop.evaluation.stress import STRESS_THRESHOLDS, StressCase
+
+    target = StressCase("target", "heavy earth", {"pile.particle_mass_kg": 0.4}, STRESS_THRESHOLDS)
+    same = SimpleNamespace(name="episode 3", path=default_policy_path())
+    record = confirm_candidate(default_policy_path(), same, target, 1, 1, True, 0.95)
+    assert record["seed"] == 30_001 and record["episodes"] == 1
+    assert record["confidence"] == 0.0 and not record["confirmed"]
+    assert record["start"]["by_case"] == record["candidate_figures"]["by_case"]
+    assert len(record["start"]["by_case"]) == 12  # the target world and the eleven stress cases
+    assert "the start kept" in capsys.readouterr().out

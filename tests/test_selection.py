@@ -3,6 +3,7 @@
 import json
 import math
 import shutil
+from dataclasses import replace
 
 import pytest
 
@@ -133,3 +134,43 @@ def test_ground_lost_counts_beyond_the_tolerance_where_the_start_held_and_weighs
                            regression=regression_from(tuned, start))
     stayed = RankedForTarget("start", None, [StressRow(target, row("light", success_rate=0.45).stats), *start])
     assert kept.score < stayed.score
+
+
+def _episodes(case_name: str, successes: list[bool], fill: float = 0.8) -> StressRow:
+    """A case's row from episodes on seeds 0.. with these successes (fill factor ``fill``, volumetric 0.7)."""
+    from autoscoop.evaluation.stress import row_from_outcomes
+
+    case = next(c for c in CASES if c.name == case_name)
+    return row_from_outcomes(case, [EpisodeOutcome(seed=i, fill_factor=fill, mass_kg=fill * 7, particles=20,
+                                                   success=ok, cycle_time_s=4.0 if ok else None, spilled=0,
+                                                   physics_error=False, steps=80, episode_return=0.0,
+                                                   volumetric_fill=0.7)
+                                    for i, ok in enumerate(successes)])
+
+
+def test_a_confirmation_is_sure_of_a_clear_gain_and_not_of_none_or_of_noise():
+    from autoscoop.evaluation.selection import confidence_of_gain
+
+    held = _episodes("angle_40", [True] * 20)
+    start = [_episodes("heavy", [True] * 10 + [False] * 10), held]
+    # fails the target world on half its piles where the candidate fails on none: sure
+    assert confidence_of_gain(start, [_episodes("heavy", [True] * 20), held]) > 0.99
+    # the same episodes: never better
+    assert confidence_of_gain(start, start) == 0.0
+    # one pile more of twenty, as noise gives: far from sure
+    noisy_start = [_episodes("heavy", [True] * 17 + [False] * 3), held]
+    assert confidence_of_gain(noisy_start, [_episodes("heavy", [True] * 18 + [False] * 2), held]) < 0.5
+    # a gain in the target world paid for in a case the start held (success 1.0 -> 0.8) is no gain
+    lost = _episodes("angle_40", [True] * 16 + [False] * 4)
+    assert confidence_of_gain(start, [_episodes("heavy", [True] * 12 + [False] * 8), lost]) < 0.5
+
+
+def test_a_confirmation_compares_the_same_piles_only():
+    from autoscoop.evaluation.selection import confidence_of_gain
+
+    start = [_episodes("heavy", [True] * 4)]
+    other_seeds = StressRow(start[0].case, start[0].stats, [replace(o, seed=o.seed + 1) for o in start[0].outcomes])
+    with pytest.raises(ValueError, match="same seeds"):
+        confidence_of_gain(start, [other_seeds])
+    with pytest.raises(ValueError, match="same cases"):
+        confidence_of_gain(start, [_episodes("light", [True] * 4)])

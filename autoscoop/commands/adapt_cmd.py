@@ -5,9 +5,11 @@ The target world is what ``--set``/``--config`` lay over the policy's training c
 randomisation preset (``randomize.preset``). The run starts from the policy's actor and the critic that trained
 it (``default`` ships both), trains in the target world and in the policy's own last world side by side, then
 validates its best snapshots and the starting policy on the target world and on every stress case (seeds 30000
-on, apart from the seeds 0-99 reports use) and keeps the one that falls least short of the stress thresholds
-without losing ground where the starting policy held. The run directory is a training run's, with
-``policy.onnx`` exported at the end; ``--resume RUN`` continues one that was cut.
+on, apart from the seeds 0-99 reports use) and ranks them by how far they fall short of the stress thresholds
+and lose ground where the starting policy held. A snapshot that ranks above the starting policy is run again
+beside it on the next seeds, and kept only if that confirmation is ``--confidence`` sure (paired bootstrap)
+that it scores better; otherwise the run keeps the policy it started from. The run directory is a training
+run's, with ``policy.onnx`` exported at the end; ``--resume RUN`` continues one that was cut.
 """
 
 from __future__ import annotations
@@ -15,10 +17,14 @@ from __future__ import annotations
 import argparse
 import time
 from pathlib import Path
+from typing import Any
 
 from autoscoop.commands import options
 from autoscoop.core.config import overrides_from_yaml, parse_set_args, read_yaml_file
 
+CONFIDENCE = 0.95
+"""how sure the confirmation must be, by default, that the validation's best snapshot scores better than the
+policy the run started from before the run keeps it: the share of paired bootstrap draws in which it does."""
 VALIDATION_SEED = 30_000
 """first seed of the validation that picks the kept snapshot: apart from the periodic evaluation's 10000 on, the
 recipes' selection's 20000 on and the reports' 0-99."""
@@ -57,7 +63,11 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                         help="best snapshots by the periodic evaluation validated beside the starting policy "
                              "(default 3; 0: keep the best periodic evaluation)")
     parser.add_argument("--validation-episodes", type=options.POSITIVE, default=20, metavar="N",
-                        help="episodes per world in the validation (default 20)")
+                        help="episodes per world in the validation, and again in the confirmation (default 20)")
+    parser.add_argument("--confidence", type=options.NumberIn(0.0, 1.0), default=CONFIDENCE, metavar="P",
+                        help="how sure the confirmation on fresh seeds must be that the best snapshot scores better "
+                             f"than the starting policy before the run keeps it, in [0, 1] (default {CONFIDENCE}; "
+                             "0: keep the validation's best without a confirmation)")
     options.add_workers_option(parser)
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
     options.add_config_args(parser)
@@ -92,7 +102,8 @@ def run(args: argparse.Namespace) -> int:
                                   checkpoint_every=args.checkpoint_every,
                                   progress=not args.no_progress))
     if not (run_dir / "selection.json").exists():
-        select_adapted(run_dir, args.candidates, args.validation_episodes, args.workers, not args.no_progress)
+        select_adapted(run_dir, args.candidates, args.validation_episodes, args.workers, not args.no_progress,
+                       args.confidence)
     from autoscoop.commands.train_cmd import finish_run  # noqa: PLC0415
 
     finish_run(run_dir, started)
@@ -103,10 +114,13 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
-def select_adapted(run_dir: Path, candidates: int, episodes: int, workers: int, progress: bool) -> None:
+def select_adapted(run_dir: Path, candidates: int, episodes: int, workers: int, progress: bool,
+                   confidence: float = CONFIDENCE) -> None:
     """Validate the starting policy and the run's ``candidates`` best snapshots on the target world and every
-    stress case, keep the best (:func:`autoscoop.evaluation.selection.rank_for_target`), write ``selection.json``
-    and the count of simulated scoops to ``run.json``."""
+    stress case (:func:`autoscoop.evaluation.selection.rank_for_target`); when a snapshot ranks first, confirm it
+    beside the starting policy on the next ``episodes`` seeds and keep it only if the confirmation is
+    ``confidence`` sure it scores better (:func:`~autoscoop.evaluation.selection.confidence_of_gain`; 0: no
+    confirmation), else keep the start; write ``selection.json`` and the count of simulated scoops to ``run.json``."""
     from autoscoop.core.config import from_dict  # noqa: PLC0415
     from autoscoop.evaluation.selection import rank_for_target  # noqa: PLC0415 - torch is slow to import
     from autoscoop.evaluation.stress import STRESS_THRESHOLDS, StressCase  # noqa: PLC0415
@@ -136,11 +150,17 @@ def select_adapted(run_dir: Path, candidates: int, episodes: int, workers: int, 
             ranked = rank_for_target(ranked_names, target, episodes, VALIDATION_SEED, workers=workers, progress=progress)
             validated = len(ranked_names) * len(ranked[0].rows) * episodes
             kept = ranked[0]
+            confirmation = None
+            if kept.path != start and confidence > 0.0:
+                confirmation = confirm_candidate(start, kept, target, episodes, workers, progress, confidence)
+                validated += 2 * len(kept.rows) * episodes
+                if not confirmation["confirmed"]:
+                    kept = next(r for r in ranked if r.path == start)
             episode = 0 if kept.path == start else next(e for e, path in best if path == kept.path)
             record = {"settings": {"candidates": candidates, "episodes": episodes, "seed": VALIDATION_SEED,
-                                   "target_overrides": overrides},
+                                   "confidence": confidence, "target_overrides": overrides},
                       "selected_episode": episode, "wall_s": round(time.time() - started, 1),
-                      "candidates": [r.summary() for r in ranked]}
+                      "candidates": [r.summary() for r in ranked], "confirmation": confirmation}
             keep_snapshot(run_dir, episode, record)
             print(f"selection: kept {kept.name} (target world {'holds' if kept.target_passed else 'FAILS'}, "
                   f"{kept.cases_passed - kept.target_passed} of {len(kept.rows) - 1} stress cases hold on validation "
@@ -148,3 +168,26 @@ def select_adapted(run_dir: Path, candidates: int, episodes: int, workers: int, 
         info = read_run_json(run_dir)
         info["scoops_simulated"] = int(info["episodes"] + periodic + validated)
         write_run_json(run_dir, info)
+
+
+def confirm_candidate(start: Path, best: Any, target: Any, episodes: int, workers: int, progress: bool,
+                      confidence: float) -> dict[str, Any]:
+    """Run the validation's ``best`` (a :class:`~autoscoop.evaluation.selection.RankedForTarget`) and the starting
+    policy again on the ``episodes`` seeds after the validation's, on the target world and every stress case,
+    and return ``selection.json``'s ``confirmation``: how sure it is that ``best`` scores better
+    (:func:`~autoscoop.evaluation.selection.confidence_of_gain`), ``confirmed`` when at least ``confidence``, and
+    both policies' figures. Fresh seeds, because the validation's best is the best of several on its seeds."""
+    from autoscoop.evaluation.selection import confidence_of_gain, rank_for_target  # noqa: PLC0415
+
+    seed = VALIDATION_SEED + episodes
+    if progress:
+        print(f"confirmation: {best.name} beside the start on seeds {seed}-{seed + episodes - 1}", flush=True)
+    again = {r.name: r for r in rank_for_target([("start", start), (best.name, best.path)], target, episodes, seed,
+                                                workers=workers, progress=False)}
+    sure = confidence_of_gain(again["start"].rows, again[best.name].rows)
+    if progress:
+        print(f"confirmation: {best.name} scores better than the start in {sure:.0%} of paired bootstrap draws "
+              f"({confidence:.0%} required): {'kept' if sure >= confidence else 'the start kept'}", flush=True)
+    return {"seed": seed, "episodes": episodes, "candidate": best.name, "confidence": sure, "required": confidence,
+            "confirmed": sure >= confidence, "start": again["start"].summary(),
+            "candidate_figures": again[best.name].summary()}

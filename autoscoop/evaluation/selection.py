@@ -167,3 +167,67 @@ def rank_for_target(candidates: Sequence[tuple[str, Path]], target: StressCase, 
               for name, path, rows in validated]
     order = sorted(range(len(ranked)), key=lambda i: (round(ranked[i].score, 9), -ranked[i].mean_delivered_fill, i))
     return [ranked[i] for i in order]
+
+
+BOOTSTRAP_DRAWS = 1000
+"""paired bootstrap draws of a confirmation."""
+
+
+def confidence_of_gain(start: Sequence[StressRow], candidate: Sequence[StressRow], draws: int = BOOTSTRAP_DRAWS,
+                       seed: int = 0) -> float:
+    """How sure a validation is that ``candidate`` scores better than ``start``: the share of paired bootstrap
+    draws in which its :attr:`RankedForTarget.score` (the target world's row first, then every stress case;
+    the ground lost counted against the start's same draw) is below the start's.
+
+    Both ran the same seeds in every case, so a draw resamples each case's episode indices once and takes those
+    episodes of both: what the two do differently on the same pile is what is resampled, not the piles.
+
+    Raises:
+        ValueError: the two do not hold the same cases, or a case's episodes are not the same seeds.
+    """
+    if [r.case.name for r in start] != [r.case.name for r in candidate]:
+        raise ValueError("the start and the candidate must be validated on the same cases, in the same order")
+    for a, b in zip(start, candidate, strict=True):
+        if [o.seed for o in a.outcomes] != [o.seed for o in b.outcomes] or not a.outcomes:
+            raise ValueError(f"case {a.case.name}: the start and the candidate must run the same seeds")
+    rng = np.random.default_rng(seed)
+    start_draws, candidate_draws = [], []
+    for a, b in zip(start, candidate, strict=True):
+        picks = rng.integers(0, len(a.outcomes), size=(draws, len(a.outcomes)))
+        start_draws.append(_drawn_statistics(a.outcomes, picks))
+        candidate_draws.append(_drawn_statistics(b.outcomes, picks))
+    better = 0
+    for k in range(draws):
+        start_rows = [StressRow(row.case, stats[k]) for row, stats in zip(start, start_draws, strict=True)]
+        candidate_rows = [StressRow(row.case, stats[k]) for row, stats in zip(candidate, candidate_draws, strict=True)]
+        start_score = total_shortfall(start_rows)
+        candidate_score = total_shortfall(candidate_rows) + regression_from(candidate_rows[1:], start_rows[1:])
+        better += candidate_score < start_score - 1e-9
+    return better / draws
+
+
+DRAWN_METRICS = ("success_rate", "fill_factor_mean", "volumetric_fill_mean", "overload_rate", "cycle_time_mean")
+"""the statistics the stress thresholds and the ground lost read, as :func:`outcome_statistics` defines them."""
+
+
+def _drawn_statistics(outcomes: Sequence[Any], picks: np.ndarray) -> list[dict[str, float]]:
+    """:data:`DRAWN_METRICS` of each draw (a row of ``picks``, indices into ``outcomes``), as
+    :func:`~autoscoop.evaluation.summary.outcome_statistics` computes them: the cycle time over successful
+    episodes, the volumetric fill over the episodes that measured it (NaN when none)."""
+    success = np.array([bool(o.success) for o in outcomes])[picks]
+    fill = np.array([float(o.fill_factor) for o in outcomes])[picks]
+    overload = np.array([bool(o.overloaded) for o in outcomes])[picks]
+    cycle = np.array([np.nan if o.cycle_time_s is None else float(o.cycle_time_s) for o in outcomes])[picks]
+    volume = np.array([np.nan if o.volumetric_fill is None else float(o.volumetric_fill) for o in outcomes])[picks]
+    with np.errstate(invalid="ignore"):
+        columns = (success.mean(axis=1), fill.mean(axis=1), _nanmean_rows(volume), overload.mean(axis=1),
+                   _nanmean_rows(cycle))
+    return [dict(zip(DRAWN_METRICS, map(float, values), strict=True)) for values in zip(*columns, strict=True)]
+
+
+def _nanmean_rows(values: np.ndarray) -> np.ndarray:
+    """Each row's mean over its finite values; NaN for a row with none."""
+    finite = np.isfinite(values)
+    counts = finite.sum(axis=1)
+    totals = np.where(finite, values, 0.0).sum(axis=1)
+    return np.where(counts > 0, totals / np.maximum(counts, 1), np.nan)
