@@ -25,6 +25,8 @@ from autoscoop.core.config import overrides_from_yaml, parse_set_args, read_yaml
 CONFIDENCE = 0.95
 """how sure the confirmation must be, by default, that the validation's best snapshot scores better than the
 policy the run started from before the run keeps it: the share of paired bootstrap draws in which it does."""
+VALIDATION_WORKERS = 2
+"""worker processes of the validation and the confirmation by default: the two cores the training used."""
 VALIDATION_SEED = 30_000
 """first seed of the validation that picks the kept snapshot: apart from the periodic evaluation's 10000 on, the
 recipes' selection's 20000 on and the reports' 0-99."""
@@ -68,7 +70,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                         help="how sure the confirmation on fresh seeds must be that the best snapshot scores better "
                              f"than the starting policy before the run keeps it, in [0, 1] (default {CONFIDENCE}; "
                              "0: keep the validation's best without a confirmation)")
-    options.add_workers_option(parser)
+    options.add_workers_option(parser, default=VALIDATION_WORKERS)
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
     options.add_config_args(parser)
     parser.set_defaults(func=run)

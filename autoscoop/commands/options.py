@@ -89,10 +89,10 @@ def add_seed_option(parser: argparse.ArgumentParser, default: int | None = 0,
     parser.add_argument("--seed", type=NON_NEGATIVE, default=default, metavar="N", help=f"{what} (0 or more{shown})")
 
 
-def add_workers_option(parser: argparse.ArgumentParser) -> None:
+def add_workers_option(parser: argparse.ArgumentParser, default: int = 1) -> None:
     """``--workers N``: processes that share the work; the results do not depend on it."""
-    parser.add_argument("--workers", type=POSITIVE, default=1, metavar="N",
-                        help="run in this many worker processes (default 1; the results are the same)")
+    parser.add_argument("--workers", type=POSITIVE, default=default, metavar="N",
+                        help=f"run in this many worker processes (default {default}; the results are the same)")
 
 
 def add_overwrite_option(parser: argparse.ArgumentParser, what: str) -> None:
