@@ -33,10 +33,11 @@ SCALED = {"--cycles": "1", "--shifts": "1", "--repeats": "1", "--steps": "200", 
 which tests/test_stress.py checks)."""
 MANY_VALUES = ("--seeds",)
 """Options that take several words (``--seeds 0 1 2 3 4``): scaling replaces them all."""
-ADAPT_SCALED = {"--eval-every": "1", "--eval-episodes": "1", "--candidates": "1", "--validation-episodes": "1"}
+ADAPT_SCALED = {"--eval-every": "1", "--eval-episodes": "1", "--candidates": "1", "--validation-episodes": "1",
+                "--workers": "1"}
 """``adapt``: 2 episodes, an evaluation of one episode after each, one candidate validated beside the starting
-policy at one episode a world."""
-RESUME_SETTINGS = {("adapt",): {"--candidates": "1", "--validation-episodes": "1"}}
+policy at one episode a world, in this process (its default two workers do not pay for one episode a case)."""
+RESUME_SETTINGS = {("adapt",): {"--candidates": "1", "--validation-episodes": "1", "--workers": "1"}}
 """What a resume takes beside the run's own settings: ``adapt --resume`` validates as its command line says."""
 SETTINGS = {("adapt",): ADAPT_SCALED, ("benchmarks/shift_speed.py",): {"--cycles": "2"},
             ("benchmarks/adapt_worlds.py",): {"--episodes": "1", "--workers": "1", "--adapt-args": " ".join(

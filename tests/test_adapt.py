@@ -20,7 +20,8 @@ from autoscoop.agents.policy_files import PolicyFileError, sha256_of
 from autoscoop.cli import main
 
 TINY = ["--episodes", "6", "--eval-every", "3", "--candidates", "1", "--validation-episodes", "1",
-        "--critic-warmup-steps", "20", "--eval-episodes", "1", "--set", "pile.variants=2", "--no-progress"]
+        "--critic-warmup-steps", "20", "--eval-episodes", "1", "--set", "pile.variants=2", "--no-progress",
+        "--workers", "1"]
 """6 episodes, two simulators, evaluations at 3 and 6, one snapshot validated beside the start on 1 episode a world."""
 
 KILL_DRIVER = """
@@ -187,7 +188,8 @@ def test_an_adapt_run_killed_mid_way_resumes_to_the_end(tmp_path):
     assert killed.returncode == -signal.SIGKILL, log.read_text()[-2000:]
     assert json.loads((run / "run.json").read_text())["status"] == "running"
     assert json.loads((run / "checkpoint" / "state.json").read_text())["episodes_done"] == 4
-    assert main(["adapt", "--resume", str(run), "--no-progress", "--candidates", "1", "--validation-episodes", "1"]) == 0
+    assert main(["adapt", "--resume", str(run), "--no-progress", "--candidates", "1", "--validation-episodes", "1",
+                 "--workers", "1"]) == 0
     info = json.loads((run / "run.json").read_text())
     assert info["status"] == "finished"
     rows = (run / "episodes.csv").read_text().strip().splitlines()
