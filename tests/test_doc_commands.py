@@ -77,8 +77,8 @@ def test_scaling_rules():
     assert skip_reason((".venv/bin/autoscoop", "eval")) is None
     assert scaled(["python", "benchmarks/adapt_worlds.py", "--seeds", "0", "1", "2", "--out", "o"])[2:6] == [
         "--seeds", "0", "--out", "o"]
-    assert scaled(["autoscoop", "adapt", "--resume", "runs/x"])[-4:] == ["--candidates", "1", "--validation-episodes",
-                                                                         "1"]
+    assert scaled(["autoscoop", "adapt", "--resume", "runs/x"])[-6:] == ["--candidates", "1", "--validation-episodes",
+                                                                         "1", "--workers", "1"]
     assert scaled(["autoscoop", "eval", "--policy", "runs/RUN"])[-1] == "--allow-empty"
     assert scaled(["autoscoop", "eval", "--policy", "default"])[-1] != "--allow-empty"
     assert not is_node(["autoscoop", "ros2", "controller", "--check"]) and is_node(["autoscoop", "ros", "controller"])
