@@ -119,8 +119,8 @@ def main(argv: list[str] | None = None) -> int:
         row["seed"] = seed
         row["judgement"] = judge(row, scripted)
         rows.append(row)
-    write_json_atomically(args.json, {"machine": args.machine, "recipe": args.recipe, "train_args": args.train_args, "seeds": args.seeds,
-                                      "stress_episodes": args.episodes, "rows": rows,
+    write_json_atomically(args.json, {"machine": args.machine, "recipe": args.recipe, "train_args": args.train_args,
+                                      "seeds": args.seeds, "stress_episodes": args.episodes, "rows": rows,
                                       "seeds_passing": sum(r["judgement"]["passed"] for r in rows[1:])})
     if args.markdown:
         write_text_atomically(args.markdown, markdown(Path(args.machine).name, rows))

@@ -174,3 +174,21 @@ def test_a_confirmation_compares_the_same_piles_only():
         confidence_of_gain(start, [other_seeds])
     with pytest.raises(ValueError, match="same cases"):
         confidence_of_gain(start, [_episodes("light", [True] * 4)])
+
+
+def test_a_draw_computes_the_statistics_as_the_stress_suite_does():
+    """The bootstrap's statistics (vectorised over draws) are outcome_statistics' own: every episode once, in order,
+    gives the same figures, a case with no success (cycle time NaN) and no volumetric fill (NaN) included."""
+    import numpy as np
+
+    from autoscoop.evaluation.selection import DRAWN_METRICS, _drawn_statistics
+    from autoscoop.evaluation.summary import outcome_statistics
+
+    mixed = _episodes("heavy", [True, False, True, True, False], fill=0.9).outcomes
+    mixed = [replace(o, overloaded=i == 2, fill_factor=0.7 + 0.1 * i) for i, o in enumerate(mixed)]
+    empty = [replace(o, volumetric_fill=math.nan) for o in _episodes("light", [False] * 3).outcomes]
+    for outcomes in (mixed, empty):
+        drawn = _drawn_statistics(outcomes, np.arange(len(outcomes))[None, :])[0]
+        expected = outcome_statistics(o.as_dict() for o in outcomes)
+        for metric in DRAWN_METRICS:
+            assert drawn[metric] == pytest.approx(expected[metric], nan_ok=True), metric

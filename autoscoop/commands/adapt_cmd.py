@@ -17,10 +17,14 @@ from __future__ import annotations
 import argparse
 import time
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from autoscoop.commands import options
 from autoscoop.core.config import overrides_from_yaml, parse_set_args, read_yaml_file
+
+if TYPE_CHECKING:  # torch is slow to import: these are imported where they run
+    from autoscoop.evaluation.selection import RankedForTarget
+    from autoscoop.evaluation.stress import StressCase
 
 CONFIDENCE = 0.95
 """how sure the confirmation must be, by default, that the validation's best snapshot scores better than the
@@ -172,10 +176,9 @@ def select_adapted(run_dir: Path, candidates: int, episodes: int, workers: int, 
         write_run_json(run_dir, info)
 
 
-def confirm_candidate(start: Path, best: Any, target: Any, episodes: int, workers: int, progress: bool,
-                      confidence: float) -> dict[str, Any]:
-    """Run the validation's ``best`` (a :class:`~autoscoop.evaluation.selection.RankedForTarget`) and the starting
-    policy again on the ``episodes`` seeds after the validation's, on the target world and every stress case,
+def confirm_candidate(start: Path, best: RankedForTarget, target: StressCase, episodes: int, workers: int,
+                      progress: bool, confidence: float) -> dict[str, Any]:
+    """Run the validation's ``best`` and the starting policy again on the ``episodes`` seeds after the validation's, on the target world and every stress case,
     and return ``selection.json``'s ``confirmation``: how sure it is that ``best`` scores better
     (:func:`~autoscoop.evaluation.selection.confidence_of_gain`), ``confirmed`` when at least ``confidence``, and
     both policies' figures. Fresh seeds, because the validation's best is the best of several on its seeds."""
