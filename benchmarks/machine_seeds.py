@@ -4,12 +4,16 @@ pile, with a mean cycle no longer than the scripted scoop's, and hold at least a
 
 For each seed: ``autoscoop train --machine M --recipe R --seed S --out OUT/M-sS`` (a run cut by an interruption
 is continued with ``--resume``; one that finished is kept), then ``autoscoop stress --machine M --policy RUN
---episodes N --json OUT/stress-sS.json``; the scripted scoop's stress is ``OUT/stress-heuristic.json``. Every
+--episodes N --json OUT/stress-sS.json``; the scripted scoop's stress is ``OUT/stress-heuristic.json``. With ``--adapt-from OTHER`` each seed is
+instead a warm start from another machine's shipped controller, ``autoscoop adapt --machine M --policy default
+--from-machine OTHER --seed S --out OUT/M-sS`` (``--train-args`` then go to ``adapt``). Every
 stress case runs seeds 0 to N-1. The summary (``--json``) holds, per policy, the nominal figures, the cases
 held and each case's row, and the judgement; ``--markdown`` writes the same as tables.
 
     .venv/bin/python benchmarks/machine_seeds.py --machine compact --seeds 0 1 2 --out runs/compact-seeds \\
         --json benchmarks/results/machines/compact_seeds.json --markdown benchmarks/results/machines/compact_seeds.md
+    .venv/bin/python benchmarks/machine_seeds.py --machine compact --adapt-from komodo --seeds 0 1 2 \
+        --out runs/compact-from-komodo --json benchmarks/results/machines/compact_from_komodo.json
 """
 
 from __future__ import annotations
@@ -42,6 +46,18 @@ def train(machine: str, recipe: str, seed: int, run: Path, extra: list[str]) -> 
         return
     autoscoop("train", "--machine", machine, "--recipe", recipe, "--seed", str(seed), "--out", str(run),
               "--no-progress", *extra)
+
+
+def adapt_from(machine: str, origin: str, seed: int, run: Path, extra: list[str]) -> None:
+    """Warm-start one seed from ``origin``'s shipped controller, or continue a run that was cut (in training, or
+    before its selection); a finished and chosen one is kept."""
+    info = run / "run.json"
+    if info.is_file():
+        if json.loads(info.read_text()).get("status") != "finished" or not (run / "selection.json").is_file():
+            autoscoop("adapt", "--machine", machine, "--resume", str(run), "--no-progress")
+        return
+    autoscoop("adapt", "--machine", machine, "--policy", "default", "--from-machine", origin, "--seed", str(seed),
+              "--out", str(run), "--no-progress", *extra)
 
 
 def stress(machine: str, policy: str, episodes: int, out: Path) -> dict:
@@ -104,7 +120,10 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--recipe", default="robot")
     parser.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2])
     parser.add_argument("--episodes", type=int, default=100, help="stress episodes per case (default 100)")
-    parser.add_argument("--train-args", default="", help="more options for train, one string")
+    parser.add_argument("--train-args", default="", help="more options for train (or adapt), one string")
+    parser.add_argument("--adapt-from", metavar="MACHINE",
+                        help="warm-start each seed from this machine's shipped controller (autoscoop adapt "
+                             "--from-machine) instead of training it")
     parser.add_argument("--out", type=Path, required=True, metavar="DIR")
     parser.add_argument("--json", type=Path, required=True, metavar="FILE")
     parser.add_argument("--markdown", type=Path, metavar="FILE")
@@ -114,12 +133,16 @@ def main(argv: list[str] | None = None) -> int:
     rows = [scripted]
     for seed in args.seeds:
         run = args.out / f"{Path(args.machine).name}-s{seed}"
-        train(args.machine, args.recipe, seed, run, args.train_args.split())
+        if args.adapt_from:
+            adapt_from(args.machine, args.adapt_from, seed, run, args.train_args.split())
+        else:
+            train(args.machine, args.recipe, seed, run, args.train_args.split())
         row = summary_of(stress(args.machine, str(run), args.episodes, args.out / f"stress-s{seed}.json"))
         row["seed"] = seed
         row["judgement"] = judge(row, scripted)
         rows.append(row)
     write_json_atomically(args.json, {"machine": args.machine, "recipe": args.recipe, "train_args": args.train_args,
+                                      "adapt_from": args.adapt_from,
                                       "seeds": args.seeds, "stress_episodes": args.episodes, "rows": rows,
                                       "seeds_passing": sum(r["judgement"]["passed"] for r in rows[1:])})
     if args.markdown:

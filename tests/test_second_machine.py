@@ -3,6 +3,7 @@ another. A process runs one machine, so each case here runs autoscoop in a proce
 
 from __future__ import annotations
 
+import hashlib
 import json
 import os
 import subprocess
@@ -83,7 +84,30 @@ def test_adapt_refuses_a_policy_of_another_machine_before_simulating(tmp_path):
                      "--out", str(tmp_path / "run"), timeout=120)
     assert done.returncode == 2
     assert "a policy for machine 'komodo'" in done.stderr
+    assert "--from-machine komodo (a warm start across machines)" in done.stderr
     assert not (tmp_path / "run" / "run.json").exists()
+
+
+def test_adapt_warm_starts_one_machine_from_another_in_its_own_worlds(tmp_path):
+    run = tmp_path / "run"
+    done = autoscoop("adapt", "--machine", "compact", "--policy", "default", "--from-machine", "komodo",
+                     "--episodes", "2", "--eval-every", "2", "--eval-episodes", "2", "--candidates", "0",
+                     "--critic-warmup-steps", "1", "--out", str(run), "--no-progress")
+    assert done.returncode == 0, done.stderr
+    info = json.loads((run / "run.json").read_text())
+    assert info["machine"] == "compact" and info["adapt"]["from_machine"] == "komodo"
+    assert info["init_from"] == str((run / "start.safetensors").resolve())
+    target, held = (yaml.safe_load((run / name).read_text()) for name in ("config.yaml", "held.yaml"))
+    assert target["pile"]["particle_mass_kg"] == 1.0125 and target["reward"]["rated_load_kg"] == 23.625
+    assert target["reward"]["distance_scale_m"] == 0.3  # the recipe's setting, as train lays it over the machine's
+    assert target["randomize"]["preset"] == "none" and held["randomize"]["preset"] == "robot"
+    assert json.loads((run / "policy.json").read_text())["machine"] == "compact"  # now the compact's controller
+    assert info["adapt"]["length_scale"] == 1.35  # the compact's lift arm over the Komodo's
+    start = json.loads((run / "start.json").read_text())
+    assert start["rescaled_from"] == {"machine": "komodo", "length_scale": 1.35,
+                                      "sha256": hashlib.sha256(KOMODO_POLICY.read_bytes()).hexdigest()}
+    first = (run / "evaluations.csv").read_text().splitlines()[1].split(",")
+    assert first[0] == "0" and float(first[3]) > 0.0  # the rescaled start scoops on the compact (unscaled: never)
 
 
 def test_a_run_records_its_machine_and_resume_refuses_another(tmp_path):

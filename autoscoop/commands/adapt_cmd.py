@@ -3,7 +3,8 @@
 The target world is what ``--set``/``--config`` lay over the policy's training config: a material
 (``pile.particle_mass_kg``, ``pile.friction``), a pile (``pile.angle_deg``), a sensor link (``sensor.*``), a
 randomisation preset (``randomize.preset``). The run starts from the policy's actor and the critic that trained
-it (``default`` ships both), trains in the target world and in the policy's own last world side by side, then
+it (``default`` ships both), trains in the target world and in the policy's own last world side by side (for
+a policy of another machine, ``--from-machine``: this machine's nominal and last worlds, a warm start), then
 validates its best snapshots and the starting policy on the target world and on every stress case (seeds 30000
 on, apart from the seeds 0-99 reports use) and ranks them by how far they fall short of the stress thresholds
 and lose ground where the starting policy held. A snapshot that ranks above the starting policy is run again
@@ -41,6 +42,13 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                                    description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     options.add_policy_option(parser, accepts="default, a training run directory, or NAME.safetensors beside "
                                               "NAME.critic.safetensors")
+    parser.add_argument("--from-machine", metavar="NAME|DIR",
+                        help="the machine the policy was trained on, when it is not --machine's: a warm start of this "
+                             "machine's controller from it (--policy default: that machine's shipped controller); "
+                             "both worlds are this machine's")
+    parser.add_argument("--length-scale", type=options.NumberIn(0.1, 10.0), metavar="S",
+                        help="with --from-machine: this machine's size over that one's, by which the policy's input is "
+                             "scaled, in [0.1, 10] (default: the ratio of their lift arms' lengths)")
     options.add_episodes_option(parser, default=400, what="training episodes, both worlds together")
     options.add_seed_option(parser, default=0, what="random seed of the run")
     options.add_out_option(parser, None, "run directory (default runs/adapt-sSEED-TIME)")
@@ -85,12 +93,15 @@ def run(args: argparse.Namespace) -> int:
     config_keys = overrides_from_yaml(args.config) if args.config and not args.resume else {}
     if args.resume:
         given = [flag for flag, value in (("--out", args.out), ("--config", args.config),
-                                          ("--set", args.overrides)) if value]
+                                          ("--set", args.overrides), ("--from-machine", args.from_machine),
+                                          ("--length-scale", args.length_scale)) if value]
         if given:
             raise ValueError(f"--resume continues {args.resume} with its recorded settings; drop {', '.join(given)}")
         for name in ("config.yaml", "held.yaml", "hyperparams.yaml"):
             if (args.resume / name).is_file():
                 read_yaml_file(args.resume / name, "run file")
+    if args.length_scale is not None and not args.from_machine:
+        raise ValueError("--length-scale scales a policy of another machine; give it with --from-machine")
     from autoscoop.training.adapt import AdaptArgs, adapt, resume_adapt  # noqa: PLC0415 - torch is slow to import
     from autoscoop.training.checkpoints import read_run_json  # noqa: PLC0415
 
@@ -105,7 +116,8 @@ def run(args: argparse.Namespace) -> int:
                                   anchor_alpha=args.anchor_alpha,
                                   noise_sigma=args.noise_sigma, eval_every=args.eval_every,
                                   eval_episodes=args.eval_episodes, out=args.out,
-                                  checkpoint_every=args.checkpoint_every,
+                                  checkpoint_every=args.checkpoint_every, from_machine=args.from_machine,
+                                  length_scale=args.length_scale,
                                   progress=not args.no_progress))
     if not (run_dir / "selection.json").exists():
         select_adapted(run_dir, args.candidates, args.validation_episodes, args.workers, not args.no_progress,

@@ -127,6 +127,12 @@ class Arm(Part):
     com_along_m: Positive
     """arm's centre of mass along the lift joint -> tilt joint line, m."""
 
+    @property
+    def length_m(self) -> float:
+        """The lift arm's length, lift joint to tilt joint, m."""
+        x, z = self.tilt_joint_from_lift_joint_m
+        return float((x * x + z * z) ** 0.5)
+
     @field_validator("com_along_m")
     @classmethod
     def _com_on_the_arm(cls, value: float, info: ValidationInfo) -> float:

@@ -197,6 +197,30 @@ STATE_SCALE = np.array([0.5, 0.1, 0.15, 0.05, 0.1, 0.15, 0.1, 0.2, 0.7, 0.05, 0.
 over the reachable states (w 0..1, the arm's workspace, speeds and joint ranges, one step's change)."""
 
 
+FROUDE_EXPONENTS = np.array([0.0, 1.0, 1.0, 1.0, 1.0, 1.0, 0.5, 0.0, 0.0, 0.0, -0.5, -0.5])
+"""How each state number goes between two loaders alike under Froude scaling, lengths x S, with the same control
+period: it is S ** exponent times the other's. w is a ratio (0); the tip, the joint and the pile distance are
+lengths (1); the drive speed goes as sqrt(S) (0.5); the joint angles are the same (0); one period's change of
+speed is an acceleration times the period, the same (0); one period's change of a joint angle is an angular speed
+times the period, 1 / sqrt(S) (-0.5). The actions need no factor: each is a share of the machine's own range."""
+
+
+def froude_input_factors(length_scale: float, history_steps: int) -> np.ndarray:
+    """The factors (float64) by which the actor's input (:func:`actor_input_size` numbers) on a machine ``length_scale``
+    times another's exceeds the input on that other in the same situation (:data:`FROUDE_EXPONENTS`; 1 for the
+    commands of a history).
+
+    Raises:
+        ValueError: ``length_scale`` not a positive finite number.
+    """
+    if not (np.isfinite(length_scale) and length_scale > 0.0):
+        raise ValueError(f"length scale {length_scale!r} must be a positive number")
+    per_state = float(length_scale) ** FROUDE_EXPONENTS
+    if history_steps == 1:
+        return per_state
+    return np.concatenate([np.tile(per_state, history_steps), np.ones(ACTION_SIZE * history_steps)])
+
+
 ACTION_CENTRE = np.zeros(ACTION_SIZE, dtype=np.float32)
 ACTION_SCALE = np.ones(ACTION_SIZE, dtype=np.float32)
 

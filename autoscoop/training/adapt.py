@@ -4,7 +4,10 @@ An adapt run starts from a policy's actor and the critic(s) that trained it (:mo
 instead of random weights. Its simulators are split between the **target world** (the policy's training config
 with the user's ``--set``/``--config`` laid over it) and the **held world** (the last world of the policy's own
 recipe: the randomised ``robot`` world for the shipped policy), so that what the controller already does is
-trained on while it learns the new. The actor holds still for the first ``critic_warmup_steps`` gradient steps,
+trained on while it learns the new. A policy of another machine (``from_machine``) is a warm start: its actor and
+critic, their input scaled for this machine's size (:mod:`autoscoop.agents.rescale`; the run's
+``start.safetensors``), start this machine's controller, and both worlds are this machine's (its nominal world
+with the policy's recipe's settings, and that recipe's last world). The actor holds still for the first ``critic_warmup_steps`` gradient steps,
 while the critic learns the target world, then moves at ``actor_lr_scale`` of the critic's learning rate
 (:class:`autoscoop.agents.optimizers.HeldAdam`). Exploration noise is small and constant. The periodic evaluation
 scores each snapshot in the target world; which snapshot the run keeps is chosen afterwards on a validation of
@@ -29,12 +32,20 @@ import yaml
 
 from autoscoop.agents.anchored import AnchoredDDPG
 from autoscoop.agents.critic_files import critic_into_sb3, critic_path_for, read_critic_sidecar
-from autoscoop.agents.loading import DEFAULT_POLICY, default_policy_path
+from autoscoop.agents.loading import DEFAULT_POLICY, PolicyError, default_policy_path
 from autoscoop.agents.optimizers import HeldAdam
-from autoscoop.agents.policy_files import PolicyFileError, load_actor, sha256_of
+from autoscoop.agents.policy_files import PolicyFileError, load_actor, save_actor, sha256_of
+from autoscoop.agents.rescale import rescale_critics, rescaled_actor
 from autoscoop.core import kinematics
 from autoscoop.core.config import ScoopConfig, from_dict, save_yaml
-from autoscoop.core.machine import refuse_other_machine
+from autoscoop.core.machine import (
+    FILES_BEFORE_MACHINES,
+    Machine,
+    MachineError,
+    load_machine,
+    refuse_other_machine,
+    shipped_machines,
+)
 from autoscoop.core.safe_files import write_text_atomically
 from autoscoop.core.version import __version__, dependency_versions
 from autoscoop.training.checkpoints import (
@@ -98,6 +109,12 @@ class AdaptArgs:
     """show a progress bar."""
     command: str | None = None
     """the command ``run.json`` records; ``None``: this process's command line."""
+    from_machine: str | None = None
+    """the machine (name or folder) the policy was trained on when it is not this process's: a warm start of this
+    machine's controller from another machine's (``None``: this machine's policy)."""
+    length_scale: float | None = None
+    """with ``from_machine``: this machine's size over the policy's, for the scaling of the input (``None``: the ratio
+    of their lift arms' lengths)."""
 
 
 @dataclass(frozen=True)
@@ -110,19 +127,36 @@ class AdaptSource:
     """``None``: a fresh critic (fitting a critic to a policy that shipped without one, ``release/fit_critic.py``)."""
     critic_meta: dict[str, Any]
     """the critic's sidecar: ``spec`` (the recipe), ``config`` (the base world), ``held_config`` (the last world)."""
+    machine: str = ""
+    """the machine the policy was trained on; another than this process's makes the run a warm start across machines."""
+    length_scale: float = 1.0
+    """this machine's size over that machine's: the actor's and critic's input are scaled by it (1: the same machine)."""
+
+    @property
+    def across_machines(self) -> bool:
+        """Whether the policy was trained on another machine than the one this process runs."""
+        return bool(self.machine) and self.machine != kinematics.MACHINE.name
 
 
-def adapt_source(policy: str) -> AdaptSource:
+def adapt_source(policy: str, from_machine: str | None = None, length_scale: float | None = None) -> AdaptSource:
     """The actor and critic files of ``policy``, checked now (before any simulation).
+
+    Args:
+        policy: ``default`` (the shipped controller of ``from_machine``, else of this machine), a training run
+            directory, or an actor file beside its critic.
+        from_machine: the machine (name or folder) the policy was trained on, when it is not this process's.
+        length_scale: this machine's size over ``from_machine``'s (``None``: the ratio of their lift arms' lengths).
 
     Raises:
         PolicyFileError: no critic beside the actor, a critic of another actor, or files that do not load.
-        MachineError: a policy trained on another machine than this process's.
+        MachineError: a policy trained on another machine than this process's (or than ``from_machine``); the
+            message names ``--from-machine``.
         ValueError: a policy of a kind that has no critic (``heuristic``, ONNX, a zip) or that does not exist.
     """
     path = Path(policy)
+    origin = load_machine(from_machine) if from_machine else kinematics.MACHINE
     if policy == DEFAULT_POLICY:
-        actor = default_policy_path()
+        actor = origin_default_policy(origin)
     elif (path / "run.json").is_file():
         actor = path / "policy.safetensors"
     elif path.suffix == ".safetensors" and path.is_file():
@@ -137,7 +171,15 @@ def adapt_source(policy: str) -> AdaptSource:
                               "the actor together with the critic that trained it. `autoscoop train` writes "
                               f"{CRITIC_FILE} for every run of an off-policy algorithm")
     _, actor_meta = load_actor(actor)
-    refuse_other_machine(actor_meta, kinematics.MACHINE, f"--policy {policy}")
+    try:
+        refuse_other_machine(actor_meta, origin, f"--policy {policy}")
+    except MachineError as error:
+        if from_machine:
+            raise
+        recorded = str(actor_meta.get("machine") or FILES_BEFORE_MACHINES)
+        raise MachineError(f"{error}; or start this machine's controller from it with --from-machine "
+                           f"{recorded if recorded in shipped_machines() else 'DIR'} (a warm start across "
+                           "machines)") from None
     meta = read_critic_sidecar(critic)
     belongs = {sha256_of(actor)} | ({sha256_of(path / "last.safetensors")} if (path / "last.safetensors").is_file() else set())
     # a shipped actor that is its run's kept snapshot, beside the critic of the run's last actor, as a run
@@ -145,15 +187,40 @@ def adapt_source(policy: str) -> AdaptSource:
     if meta["actor_sha256"] not in belongs and meta.get("kept_actor_sha256") != sha256_of(actor):
         raise PolicyFileError(f"--policy {policy}: the critic {critic} was trained with another actor "
                               f"(SHA-256 {meta['actor_sha256'][:12]}...)")
-    return AdaptSource(policy, actor, critic, meta)
+    scale = 1.0
+    if origin.name != kinematics.MACHINE.name:
+        scale = float(length_scale) if length_scale is not None else kinematics.MACHINE.arm.length_m / origin.arm.length_m
+    return AdaptSource(policy, actor, critic, meta, origin.name, scale)
+
+
+def origin_default_policy(origin: Machine) -> Path:
+    """The shipped controller of ``origin`` (this process's machine: :func:`default_policy_path`).
+
+    Raises:
+        PolicyError: the machine ships none.
+    """
+    if origin is kinematics.MACHINE:
+        return default_policy_path()
+    path = origin.default_policy_path()
+    if path is None:
+        raise PolicyError(f"--policy default --from-machine {origin.name}: machine {origin.name} ships no trained "
+                          "controller (its machine.yaml names no default_policy); pass a run directory as --policy")
+    return path
 
 
 def adapt_worlds(source: AdaptSource, overrides: dict[str, Any]) -> tuple[ScoopConfig, ScoopConfig]:
     """The target world (the policy's training config with ``overrides``) and the held world (the last world of
-    the policy's recipe, as its critic file records it). A key that does not exist or a value out of range is a :class:`ConfigError` now."""
+    the policy's recipe, as its critic file records it). For a policy of another machine both are this machine's:
+    its nominal world with the recipe's ``env`` settings (what ``autoscoop train`` would start from), with
+    ``overrides``, and that world at the end of the recipe's curriculum. A key that does not exist or a value out
+    of range is a :class:`ConfigError` now."""
+    spec = source.critic_meta["spec"]
+    if source.across_machines:
+        base = ScoopConfig().with_overrides(dict(spec.get("env") or {}))
+        return base.with_overrides(overrides), config_at(base, spec, 1 << 30)
     base = from_dict(source.critic_meta["config"])
     held = source.critic_meta.get("held_config")
-    held = from_dict(held) if isinstance(held, dict) else config_at(base, source.critic_meta["spec"], 1 << 30)
+    held = from_dict(held) if isinstance(held, dict) else config_at(base, spec, 1 << 30)
     return base.with_overrides(overrides), held
 
 
@@ -200,7 +267,7 @@ def adapt(args: AdaptArgs, source: AdaptSource | None = None) -> Path:
     starts or a directory is made. ``source``: the policy to start from (default: :func:`adapt_source` of
     ``args.policy``)."""
     check_adapt_args(args)
-    source = source or adapt_source(args.policy)
+    source = source or adapt_source(args.policy, args.from_machine, args.length_scale)
     target, held = adapt_worlds(source, args.overrides)
     spec = adapt_spec(source, args)
     run_dir = Path(args.out) if args.out else _default_run_dir(args.seed)
@@ -219,9 +286,13 @@ def adapt(args: AdaptArgs, source: AdaptSource | None = None) -> Path:
                     "state_frame": "level" if target.sensor.level_with_imu else "chassis",
                     "status": "running", "wall_s": 0.0,
                     "init_from": str(source.actor.resolve()), "init_sha256": sha256_of(source.actor),
-                    "adapt": {"policy": source.name,
+                    "adapt": {"policy": source.name, "from_machine": source.machine,
+                              "length_scale": round(source.length_scale, 6),
                               "critic_from": str(source.critic.resolve()) if source.critic else None,
                               "critic_sha256": source.critic_meta.get("sha256")}}
+            if source.across_machines:
+                start = write_rescaled_start(source, run_dir / START_FILE)
+                info.update(init_from=str(start.resolve()), init_sha256=sha256_of(start))
             model = adapt_model(run_dir, target, held, spec, info)
             save_yaml(target, run_dir / "config.yaml")
             save_yaml(held, run_dir / "held.yaml")
@@ -232,6 +303,20 @@ def adapt(args: AdaptArgs, source: AdaptSource | None = None) -> Path:
         if created and not (run_dir / "run.json").exists():
             shutil.rmtree(run_dir, ignore_errors=True)
         raise
+
+
+START_FILE = "start.safetensors"
+"""the actor a warm start across machines begins from, in its run directory: the other machine's actor, rescaled."""
+
+
+def write_rescaled_start(source: AdaptSource, path: Path) -> Path:
+    """Write ``source``'s actor with its input scaled for this machine (:func:`rescaled_actor`), as this machine's."""
+    actor, meta = load_actor(source.actor)
+    kept = {key: value for key, value in meta.items()
+            if key not in ("format", "layers", "output", "sha256", "machine", "machine_sha256", "history_steps")}
+    return save_actor(rescaled_actor(actor, source.length_scale), path,
+                      {**kept, "rescaled_from": {"machine": source.machine, "sha256": sha256_of(source.actor),
+                                                 "length_scale": round(source.length_scale, 6)}})
 
 
 def adapt_model(run_dir: Path, target: ScoopConfig, held: ScoopConfig, spec: dict[str, Any], info: dict[str, Any],
@@ -256,6 +341,8 @@ def adapt_model(run_dir: Path, target: ScoopConfig, held: ScoopConfig, spec: dic
             model.set_anchor(model.actor, alpha)
         if warm_start and info["adapt"]["critic_from"]:
             critic_into_sb3(info["adapt"]["critic_from"], model)
+            if float(info["adapt"].get("length_scale", 1.0)) != 1.0:
+                rescale_critics(model, float(info["adapt"]["length_scale"]), history_steps(spec))
     except BaseException:
         env.close()
         raise
