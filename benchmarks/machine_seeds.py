@@ -12,7 +12,7 @@ held and each case's row, and the judgement; ``--markdown`` writes the same as t
 
     .venv/bin/python benchmarks/machine_seeds.py --machine compact --seeds 0 1 2 --out runs/compact-seeds \\
         --json benchmarks/results/machines/compact_seeds.json --markdown benchmarks/results/machines/compact_seeds.md
-    .venv/bin/python benchmarks/machine_seeds.py --machine compact --adapt-from komodo --seeds 0 1 2 \
+    .venv/bin/python benchmarks/machine_seeds.py --machine compact --adapt-from komodo --seeds 0 1 2 \\
         --out runs/compact-from-komodo --json benchmarks/results/machines/compact_from_komodo.json
 """
 
@@ -141,7 +141,8 @@ def main(argv: list[str] | None = None) -> int:
         row["seed"] = seed
         row["judgement"] = judge(row, scripted)
         rows.append(row)
-    write_json_atomically(args.json, {"machine": args.machine, "recipe": args.recipe, "train_args": args.train_args,
+    write_json_atomically(args.json, {"machine": args.machine, "recipe": None if args.adapt_from else args.recipe,
+                                      "train_args": args.train_args,
                                       "adapt_from": args.adapt_from,
                                       "seeds": args.seeds, "stress_episodes": args.episodes, "rows": rows,
                                       "seeds_passing": sum(r["judgement"]["passed"] for r in rows[1:])})

@@ -7,6 +7,7 @@ from pathlib import Path
 from autoscoop.agents.heuristic import HeuristicScooper, machine_params
 from autoscoop.core import kinematics
 from autoscoop.core.config import ScoopConfig
+from autoscoop.core.machine import Machine
 from autoscoop.core.policy import Policy
 from autoscoop.core.safe_files import UnsafeInputError, quote, read_json
 from autoscoop.core.state import CommandLimits
@@ -28,16 +29,17 @@ def heuristic_for(config: ScoopConfig) -> HeuristicScooper:
         limits=CommandLimits.for_robot(config.robot)))
 
 
-def default_policy_path() -> Path:
-    """The shipped policy's weights file for the machine this process runs.
+def default_policy_path(machine: Machine | None = None) -> Path:
+    """The shipped policy's weights file of ``machine`` (default: the machine this process runs).
 
     Raises:
         PolicyError: the machine ships no trained controller.
     """
-    path = kinematics.MACHINE.default_policy_path()
+    machine = machine or kinematics.MACHINE
+    path = machine.default_policy_path()
     if path is None:
-        raise PolicyError(f"machine {kinematics.MACHINE.name} ships no trained controller (its machine.yaml names no "
-                          f"default_policy): train one with `autoscoop train --machine {kinematics.MACHINE.name}` "
+        raise PolicyError(f"machine {machine.name} ships no trained controller (its machine.yaml names no "
+                          f"default_policy): train one with `autoscoop train --machine {machine.name}` "
                           "and pass its run directory as --policy, or use --policy heuristic")
     return path
 

@@ -7,8 +7,8 @@ recipe: the randomised ``robot`` world for the shipped policy), so that what the
 trained on while it learns the new. A policy of another machine (``from_machine``) is a warm start: its actor and
 critic, their input scaled for this machine's size (:mod:`autoscoop.agents.rescale`; the run's
 ``start.safetensors``), start this machine's controller, and both worlds are this machine's (its nominal world
-with the policy's recipe's settings, and that recipe's last world). The actor holds still for the first ``critic_warmup_steps`` gradient steps,
-while the critic learns the target world, then moves at ``actor_lr_scale`` of the critic's learning rate
+with the policy's recipe's settings, and that recipe's last world). The actor holds still for the first
+``critic_warmup_steps`` gradient steps, while the critic learns the target world, then moves at ``actor_lr_scale`` of the critic's learning rate
 (:class:`autoscoop.agents.optimizers.HeldAdam`). Exploration noise is small and constant. The periodic evaluation
 scores each snapshot in the target world; which snapshot the run keeps is chosen afterwards on a validation of
 both worlds (``autoscoop adapt`` does it, :mod:`autoscoop.evaluation.selection`).
@@ -32,7 +32,7 @@ import yaml
 
 from autoscoop.agents.anchored import AnchoredDDPG
 from autoscoop.agents.critic_files import critic_into_sb3, critic_path_for, read_critic_sidecar
-from autoscoop.agents.loading import DEFAULT_POLICY, PolicyError, default_policy_path
+from autoscoop.agents.loading import DEFAULT_POLICY, default_policy_path
 from autoscoop.agents.optimizers import HeldAdam
 from autoscoop.agents.policy_files import PolicyFileError, load_actor, save_actor, sha256_of
 from autoscoop.agents.rescale import rescale_critics, rescaled_actor
@@ -40,7 +40,6 @@ from autoscoop.core import kinematics
 from autoscoop.core.config import ScoopConfig, from_dict, save_yaml
 from autoscoop.core.machine import (
     FILES_BEFORE_MACHINES,
-    Machine,
     MachineError,
     load_machine,
     refuse_other_machine,
@@ -156,7 +155,7 @@ def adapt_source(policy: str, from_machine: str | None = None, length_scale: flo
     path = Path(policy)
     origin = load_machine(from_machine) if from_machine else kinematics.MACHINE
     if policy == DEFAULT_POLICY:
-        actor = origin_default_policy(origin)
+        actor = default_policy_path(origin)
     elif (path / "run.json").is_file():
         actor = path / "policy.safetensors"
     elif path.suffix == ".safetensors" and path.is_file():
@@ -191,21 +190,6 @@ def adapt_source(policy: str, from_machine: str | None = None, length_scale: flo
     if origin.name != kinematics.MACHINE.name:
         scale = float(length_scale) if length_scale is not None else kinematics.MACHINE.arm.length_m / origin.arm.length_m
     return AdaptSource(policy, actor, critic, meta, origin.name, scale)
-
-
-def origin_default_policy(origin: Machine) -> Path:
-    """The shipped controller of ``origin`` (this process's machine: :func:`default_policy_path`).
-
-    Raises:
-        PolicyError: the machine ships none.
-    """
-    if origin is kinematics.MACHINE:
-        return default_policy_path()
-    path = origin.default_policy_path()
-    if path is None:
-        raise PolicyError(f"--policy default --from-machine {origin.name}: machine {origin.name} ships no trained "
-                          "controller (its machine.yaml names no default_policy); pass a run directory as --policy")
-    return path
 
 
 def adapt_worlds(source: AdaptSource, overrides: dict[str, Any]) -> tuple[ScoopConfig, ScoopConfig]:
